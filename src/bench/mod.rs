@@ -1,0 +1,386 @@
+//! Throughput of the hot paths on this machine: what `rnerf bench` prints and `benches/`
+//! runs. Every figure is the median over repetitions, with min and max kept as the spread.
+//!
+//! Limits are measured in the same run so ratios are meaningful on any machine: the fp32
+//! FMA peak ([`peak::fma_loop`]) for the MLP, and a bare random-gather loop over a table of
+//! the grid's size for the hash grid.
+
+pub mod peak;
+
+use crate::encoding::{HashGrid, HashGridConfig, HashGridParams};
+use crate::mlp::{Activation, Mlp, MlpConfig, MlpContext, MlpWorkspace};
+use crate::rng::Rng;
+use crate::simd::Isa;
+use crate::train::{Adam, AdamConfig};
+use crate::GradientMode;
+use std::hint::black_box;
+use std::time::Instant;
+
+/// What to measure and how long.
+#[derive(Clone, Debug)]
+pub struct BenchOptions {
+    /// Repetitions per figure. Defaults to 5.
+    pub reps: usize,
+    /// Work per repetition relative to the default (≈0.1–0.3 s per figure). Defaults to 1.0;
+    /// tests use a tiny value to exercise the code.
+    pub scale: f64,
+    /// Hash-grid table size. Defaults to the grid's default.
+    pub log2_table_size: u32,
+    /// The CPU level to run. Defaults to [`Isa::detect`].
+    pub isa: Isa,
+}
+
+impl Default for BenchOptions {
+    fn default() -> Self {
+        BenchOptions {
+            reps: 5,
+            scale: 1.0,
+            log2_table_size: HashGridConfig::default().log2_table_size,
+            isa: Isa::detect(),
+        }
+    }
+}
+
+/// Median and spread of one figure.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Stat {
+    /// Median over repetitions.
+    pub median: f64,
+    /// Smallest repetition.
+    pub min: f64,
+    /// Largest repetition.
+    pub max: f64,
+}
+
+impl Stat {
+    fn of(mut v: Vec<f64>) -> Stat {
+        assert!(!v.is_empty());
+        v.sort_by(f64::total_cmp);
+        let n = v.len();
+        let median = if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) };
+        Stat { median, min: v[0], max: v[n - 1] }
+    }
+}
+
+/// All figures of one run, in the order measured.
+#[derive(Clone, Debug)]
+pub struct BenchReport {
+    /// CPU level the kernels ran at.
+    pub cpu_level: String,
+    /// Threads of the rayon pool ("all threads").
+    pub threads: usize,
+    /// log2 table size of the grid figures.
+    pub log2_table_size: u32,
+    /// (name, unit, figure).
+    pub figures: Vec<(String, &'static str, Stat)>,
+}
+
+impl BenchReport {
+    /// The median of figure `name`.
+    pub fn get(&self, name: &str) -> Option<f64> {
+        self.figures.iter().find(|f| f.0 == name).map(|f| f.2.median)
+    }
+
+    /// One JSON object: every figure's median under its name, plus `spread` ([min, max]).
+    pub fn to_json(&self) -> serde_json::Value {
+        let mut o = serde_json::Map::new();
+        o.insert("cpu_level".into(), self.cpu_level.clone().into());
+        o.insert("threads".into(), self.threads.into());
+        o.insert("log2_table_size".into(), self.log2_table_size.into());
+        let mut spread = serde_json::Map::new();
+        for (name, _, s) in &self.figures {
+            o.insert(name.clone(), round4(s.median).into());
+            spread.insert(name.clone(), serde_json::json!([round4(s.min), round4(s.max)]));
+        }
+        o.insert("spread".into(), spread.into());
+        serde_json::Value::Object(o)
+    }
+
+    /// A human-readable table.
+    pub fn to_table(&self) -> String {
+        let mut s = format!(
+            "cpu level {}, {} threads, hash grid log2T={}\n",
+            self.cpu_level, self.threads, self.log2_table_size
+        );
+        for (name, unit, st) in &self.figures {
+            s += &format!("{name:<44} {:>12.3} [{:>10.3} .. {:>10.3}] {unit}\n", st.median, st.min, st.max);
+        }
+        s
+    }
+}
+
+fn round4(x: f64) -> f64 {
+    if x == 0.0 || !x.is_finite() {
+        return x;
+    }
+    let mag = 10f64.powi(3 - x.abs().log10().floor() as i32);
+    (x * mag).round() / mag
+}
+
+/// Times `f` `reps` times; returns seconds per repetition.
+fn time_reps(reps: usize, mut f: impl FnMut()) -> Vec<f64> {
+    f(); // warm caches and lazily sized buffers
+    (0..reps)
+        .map(|_| {
+            let t = Instant::now();
+            f();
+            t.elapsed().as_secs_f64()
+        })
+        .collect()
+}
+
+/// Runs `f(thread_index)` once on every thread of the current rayon pool, all at once.
+fn on_all_threads(f: impl Fn(usize) + Sync) {
+    rayon::broadcast(|ctx| f(ctx.index()));
+}
+
+fn single_thread_pool() -> rayon::ThreadPool {
+    rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("cannot start a rayon thread")
+}
+
+/// Positions along rays (32 samples per ray, Instant-NGP's minimum step √3/1024 in the unit
+/// cube): the locality a NeRF batch has.
+pub fn ray_coherent_positions(n: usize, rng: &mut Rng) -> Vec<[f32; 3]> {
+    let step = 3f32.sqrt() / 1024.0;
+    let mut out = Vec::with_capacity(n);
+    while out.len() < n {
+        let o = [rng.f32(), rng.f32(), rng.f32()];
+        let mut d = [rng.f32() - 0.5, rng.f32() - 0.5, rng.f32() - 0.5];
+        let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt().max(1e-3);
+        d.iter_mut().for_each(|v| *v /= len);
+        for s in 0..32.min(n - out.len()) {
+            out.push(std::array::from_fn(|k| {
+                let v = o[k] + d[k] * step * s as f32;
+                (v - v.floor()).min(0.999_999)
+            }));
+        }
+    }
+    out
+}
+
+/// The NeRF's two networks (DESIGN §2.1).
+pub fn nerf_mlps() -> (Mlp<64>, Mlp<64>) {
+    let density = Mlp::<64>::new(MlpConfig {
+        input: 32,
+        output: 16,
+        hidden_layers: 1,
+        hidden_activation: Activation::Relu,
+        output_activation: Activation::None,
+    });
+    let colour = Mlp::<64>::new(MlpConfig {
+        input: 31,
+        output: 3,
+        hidden_layers: 2,
+        hidden_activation: Activation::Relu,
+        output_activation: Activation::None,
+    });
+    (density, colour)
+}
+
+/// State of one thread's MLP forward+backward loop.
+struct MlpBench {
+    nets: (Mlp<64>, Mlp<64>),
+    params: (Vec<f32>, Vec<f32>),
+    grads: (Vec<f32>, Vec<f32>),
+    inputs: (Vec<f32>, Vec<f32>),
+    d_out: (Vec<f32>, Vec<f32>),
+    d_in: (Vec<f32>, Vec<f32>),
+    ctx: (MlpContext, MlpContext),
+    ws: MlpWorkspace,
+}
+
+impl MlpBench {
+    /// Samples per fused call: one chunk of the training step, small enough that every
+    /// activation, weight and gradient stays in L1/L2 and within the data-TLB reach
+    /// (measured here: 128 rows run at ~1.7× the speed of 192; see BENCHMARKS.md).
+    const BATCH: usize = 128;
+
+    fn new(seed: u64) -> MlpBench {
+        let mut rng = Rng::new(seed);
+        let nets = nerf_mlps();
+        let rand = |n: usize, rng: &mut Rng| (0..n).map(|_| rng.uniform(-1.0, 1.0)).collect::<Vec<f32>>();
+        let n = Self::BATCH;
+        MlpBench {
+            params: (nets.0.init_params(&mut rng), nets.1.init_params(&mut rng)),
+            grads: (vec![0.0; nets.0.n_params()], vec![0.0; nets.1.n_params()]),
+            inputs: (rand(n * nets.0.input_stride(), &mut rng), rand(n * nets.1.input_stride(), &mut rng)),
+            d_out: (rand(n * nets.0.output_stride(), &mut rng), rand(n * nets.1.output_stride(), &mut rng)),
+            d_in: (vec![0.0; n * nets.0.input_stride()], vec![0.0; n * nets.1.input_stride()]),
+            ctx: Default::default(),
+            ws: MlpWorkspace::default(),
+            nets,
+        }
+    }
+
+    /// FLOPs (2 per multiply-add, padded widths as executed) of one `run`: forward, dL/dinput
+    /// and dL/dweights of both networks.
+    fn flops(&self) -> f64 {
+        let macs = self.nets.0.macs_per_sample().0 + self.nets.1.macs_per_sample().0;
+        (2 * 3 * macs * Self::BATCH) as f64
+    }
+
+    fn run(&mut self, isa: Isa) {
+        let n = Self::BATCH;
+        let s = self;
+        s.nets.0.forward(isa, &s.params.0, &s.inputs.0, n, &mut s.ctx.0);
+        s.nets.1.forward(isa, &s.params.1, &s.inputs.1, n, &mut s.ctx.1);
+        s.nets.1.backward(
+            isa,
+            &s.params.1,
+            &s.inputs.1,
+            &s.ctx.1,
+            &s.d_out.1,
+            &mut s.grads.1,
+            GradientMode::Accumulate,
+            Some(&mut s.d_in.1),
+            &mut s.ws,
+        );
+        s.nets.0.backward(
+            isa,
+            &s.params.0,
+            &s.inputs.0,
+            &s.ctx.0,
+            &s.d_out.0,
+            &mut s.grads.0,
+            GradientMode::Accumulate,
+            Some(&mut s.d_in.0),
+            &mut s.ws,
+        );
+        black_box(&s.d_in);
+    }
+}
+
+/// A bare random-gather loop over a table laid out like `grid`: per sample, 8 random 4-byte
+/// reads in each level's slice (the memory traffic of one encoding, without its arithmetic).
+/// Returns a checksum.
+pub fn bare_gather(grid: &HashGrid, table: &[u32], samples: usize, seed: u32) -> u32 {
+    let mut h = seed.wrapping_mul(0x9E37_79B1) | 1;
+    let mut acc = 0u32;
+    for _ in 0..samples {
+        for level in grid.levels() {
+            let t = &table[level.offset..level.offset + level.size];
+            for _ in 0..8 {
+                // xorshift32: cheap, full-period index stream
+                h ^= h << 13;
+                h ^= h >> 17;
+                h ^= h << 5;
+                // multiply-shift range reduction: uniform over the level, no division
+                acc = acc.wrapping_add(t[((h as u64 * t.len() as u64) >> 32) as usize]);
+            }
+        }
+    }
+    acc
+}
+
+/// Runs every benchmark. Takes a few seconds at `scale = 1`.
+pub fn run(opts: &BenchOptions) -> BenchReport {
+    let isa = opts.isa;
+    let reps = opts.reps.max(1);
+    let threads = rayon::current_num_threads();
+    let scaled = |n: f64| ((n * opts.scale).round() as usize).max(1);
+    let mut figures = Vec::new();
+    let mut push = |name: &str, unit: &'static str, v: Vec<f64>| figures.push((name.to_string(), unit, Stat::of(v)));
+
+    // fp32 FMA peak, 1 thread and all threads.
+    let iters = scaled(4e7) as u64;
+    let flop = peak::fma_loop(isa, 1, 0.0).1 * iters as f64;
+    push(
+        "fma_peak_gflops_1t",
+        "GFLOP/s",
+        time_reps(reps, || _ = black_box(peak::fma_loop(isa, iters, 1.0))).iter().map(|s| flop / s / 1e9).collect(),
+    );
+    let fma_all = time_reps(reps, || on_all_threads(|t| _ = black_box(peak::fma_loop(isa, iters, t as f32))));
+    push("fma_peak_gflops", "GFLOP/s", fma_all.iter().map(|s| flop * threads as f64 / s / 1e9).collect());
+
+    // Fused MLP forward + backward (density + colour), 1 thread and all threads.
+    let calls = scaled(200.0);
+    let mut one = MlpBench::new(1);
+    let flops = one.flops() * calls as f64;
+    let v = time_reps(reps, || (0..calls).for_each(|_| one.run(isa)));
+    push("mlp_fwd_bwd_gflops_1t", "GFLOP/s", v.iter().map(|s| flops / s / 1e9).collect());
+    push("mlp_fwd_bwd_samples_per_s_1t", "samples/s", v.iter().map(|s| (calls * MlpBench::BATCH) as f64 / s).collect());
+    let per_thread: Vec<std::sync::Mutex<MlpBench>> =
+        (0..threads).map(|t| std::sync::Mutex::new(MlpBench::new(t as u64))).collect();
+    let v = time_reps(reps, || {
+        on_all_threads(|t| {
+            let mut b = per_thread[t].lock().unwrap();
+            (0..calls).for_each(|_| b.run(isa));
+        })
+    });
+    push("mlp_fwd_bwd_gflops", "GFLOP/s", v.iter().map(|s| flops * threads as f64 / s / 1e9).collect());
+
+    // Hash grid at the requested table size: 1 thread and all threads, ray-coherent samples.
+    let grid = HashGrid::new(HashGridConfig { log2_table_size: opts.log2_table_size, ..Default::default() });
+    let mut rng = Rng::new(7);
+    let mut params = HashGridParams::init(&grid, &mut rng);
+    // Spread values so the table is not all near-zero (irrelevant for speed, but realistic).
+    params.master.iter_mut().for_each(|p| *p *= 1e3);
+    params.sync_mirror();
+    let n = scaled(1.0 * (1 << 17) as f64);
+    let pos = ray_coherent_positions(n, &mut rng);
+    let mut enc = vec![0f32; n * grid.output_width()];
+    let d_enc: Vec<f32> = (0..enc.len()).map(|_| rng.uniform(-1.0, 1.0)).collect();
+    let mut grads = vec![0f32; grid.n_params()];
+    let ns = |v: Vec<f64>| v.iter().map(|s| s * 1e9 / n as f64).collect::<Vec<_>>();
+    let pool1 = single_thread_pool();
+    push(
+        "hash_grid_fwd_ns_per_sample_1t",
+        "ns/sample",
+        ns(time_reps(reps, || grid.forward(isa, &params.table, &pos, &mut enc))),
+    );
+    push(
+        "hash_grid_bwd_ns_per_sample_1t",
+        "ns/sample",
+        ns(time_reps(reps, || {
+            pool1.install(|| grid.backward_params(isa, &pos, &d_enc, &mut grads, GradientMode::Accumulate))
+        })),
+    );
+    push(
+        "hash_grid_fwd_ns_per_sample",
+        "ns/sample",
+        ns(time_reps(reps, || grid.forward_par(isa, &params.table, &pos, &mut enc))),
+    );
+    push(
+        "hash_grid_bwd_ns_per_sample",
+        "ns/sample",
+        ns(time_reps(reps, || grid.backward_params(isa, &pos, &d_enc, &mut grads, GradientMode::Accumulate))),
+    );
+    push(
+        "gather_limit_ns_per_sample_1t",
+        "ns/sample",
+        ns(time_reps(reps, || _ = black_box(bare_gather(&grid, &params.table, n, 3)))),
+    );
+
+    // Adam over the grid's parameters with the fp16 mirror.
+    let mut adam = Adam::new(grid.n_params(), AdamConfig::default());
+    let np = grid.n_params() as f64;
+    let mut step = |adam: &mut Adam| {
+        let half: &mut [u16] = bytemuck::cast_slice_mut(&mut params.table);
+        adam.step(isa, 1e-3, &mut params.master, &grads, Some(half));
+    };
+    push(
+        "adam_ns_per_param_1t",
+        "ns/param",
+        time_reps(reps, || pool1.install(|| step(&mut adam))).iter().map(|s| s * 1e9 / np).collect(),
+    );
+    push("adam_ns_per_param", "ns/param", time_reps(reps, || step(&mut adam)).iter().map(|s| s * 1e9 / np).collect());
+
+    let mut report =
+        BenchReport { cpu_level: isa.to_string(), threads, log2_table_size: opts.log2_table_size, figures };
+    // Derived ratios (from medians).
+    let ratio = |a: &str, b: &str, r: &BenchReport| r.get(a).zip(r.get(b)).map(|(a, b)| a / b).unwrap_or(f64::NAN);
+    let derived = [
+        ("mlp_fraction_of_fma_peak_1t", ratio("mlp_fwd_bwd_gflops_1t", "fma_peak_gflops_1t", &report)),
+        ("mlp_thread_scaling", ratio("mlp_fwd_bwd_gflops", "mlp_fwd_bwd_gflops_1t", &report)),
+        (
+            "hash_grid_fwd_bwd_over_gather_limit_1t",
+            (report.get("hash_grid_fwd_ns_per_sample_1t").unwrap()
+                + report.get("hash_grid_bwd_ns_per_sample_1t").unwrap())
+                / report.get("gather_limit_ns_per_sample_1t").unwrap(),
+        ),
+    ];
+    for (name, v) in derived {
+        report.figures.push((name.to_string(), "ratio", Stat { median: v, min: v, max: v }));
+    }
+    report
+}

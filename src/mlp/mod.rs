@@ -1,0 +1,369 @@
+//! Fused tiny MLP (DESIGN §2.1): bias-free dense layers of a const-generic hidden width
+//! `W ∈ {16, 32, 64}`, a hidden activation and a separate output activation.
+//!
+//! **Fusion.** [`Mlp::forward`] walks the batch in tiles of [`TILE`] samples and pushes each
+//! tile through *all* layers while it is in L1, saving every layer's output in the
+//! [`MlpContext`]; [`Mlp::backward`] walks the same tiles back through all layers, producing
+//! dL/dweights (per [`GradientMode`]) and optionally dL/dinput.
+//!
+//! **Padding.** Input and output widths are padded to multiples of 16 (the SIMD tile);
+//! callers lay rows out with [`Mlp::input_stride`] / [`Mlp::output_stride`]. Padded weights
+//! start at zero and their gradients are forced to zero, so they stay zero under Adam and
+//! whatever the caller leaves in padding columns never reaches the result.
+//!
+//! **Weights.** One flat `f32` buffer; layer `l` is a `k_l × o_l` row-major view
+//! (`w[kk · o_l + j]`), layers in order.
+//!
+//! Per layer, `z = x·W`, `y = act(z)`; backward: `dz = dy ⊙ act′(y)`, `dW += xᵀ·dz`,
+//! `dx = dz·Wᵀ`. Kernels: [`scalar`] is the spec, `avx2`/`neon` its twins.
+
+pub mod activation;
+#[cfg(target_arch = "x86_64")]
+mod avx2;
+#[cfg(target_arch = "aarch64")]
+mod neon;
+pub mod scalar;
+
+pub use activation::Activation;
+
+use crate::rng::Rng;
+use crate::simd::{CpuLevel, Isa};
+use crate::GradientMode;
+
+/// Samples per tile pushed through all layers together.
+pub const TILE: usize = 64;
+
+/// Shape and activations of an MLP.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MlpConfig {
+    /// Input features. No default (network specific).
+    pub input: usize,
+    /// Output features. No default (network specific).
+    pub output: usize,
+    /// Hidden layers of width `W` (≥ 1).
+    pub hidden_layers: usize,
+    /// Activation after each hidden layer. Usually [`Activation::Relu`].
+    pub hidden_activation: Activation,
+    /// Activation of the output layer. Usually [`Activation::None`]: the field applies
+    /// trunc_exp / sigmoid itself, because Residual-NeRF mixes pre-activation values.
+    pub output_activation: Activation,
+}
+
+/// Where one layer's weights live in the flat parameter buffer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LayerShape {
+    /// First weight of the layer.
+    pub offset: usize,
+    /// Padded input width.
+    pub k: usize,
+    /// Padded output width.
+    pub o: usize,
+    /// Unpadded input width.
+    pub k_real: usize,
+    /// Unpadded output width.
+    pub o_real: usize,
+}
+
+/// A bias-free MLP of hidden width `W`. Holds only the geometry; weights are a flat slice.
+#[derive(Clone, Debug)]
+pub struct Mlp<const W: usize> {
+    config: MlpConfig,
+    layers: Vec<LayerShape>,
+    n_params: usize,
+}
+
+fn pad16(n: usize) -> usize {
+    n.div_ceil(16) * 16
+}
+
+impl<const W: usize> Mlp<W> {
+    /// Lays out the layers. Panics when `W ∉ {16, 32, 64}`, a width is 0 or there is no hidden layer.
+    pub fn new(config: MlpConfig) -> Mlp<W> {
+        assert!(matches!(W, 16 | 32 | 64), "mlp: hidden width must be 16, 32 or 64");
+        assert!(config.input > 0 && config.output > 0, "mlp: input and output widths must be positive");
+        assert!(config.hidden_layers >= 1, "mlp: at least one hidden layer");
+        let mut dims = vec![(config.input, pad16(config.input))];
+        dims.extend(std::iter::repeat_n((W, W), config.hidden_layers));
+        dims.push((config.output, pad16(config.output)));
+        let mut offset = 0;
+        let layers = dims
+            .windows(2)
+            .map(|d| {
+                let s = LayerShape { offset, k: d[0].1, o: d[1].1, k_real: d[0].0, o_real: d[1].0 };
+                offset += s.k * s.o;
+                s
+            })
+            .collect();
+        Mlp { config, layers, n_params: offset }
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &MlpConfig {
+        &self.config
+    }
+
+    /// Layer views into the parameter buffer.
+    pub fn layers(&self) -> &[LayerShape] {
+        &self.layers
+    }
+
+    /// Length of the flat weight buffer (including zero padding).
+    pub fn n_params(&self) -> usize {
+        self.n_params
+    }
+
+    /// Floats per input row (input width padded to 16).
+    pub fn input_stride(&self) -> usize {
+        self.layers[0].k
+    }
+
+    /// Floats per output row (output width padded to 16).
+    pub fn output_stride(&self) -> usize {
+        self.layers.last().unwrap().o
+    }
+
+    /// Multiply-adds per sample of one forward pass, padded (what the kernels execute) and
+    /// real (what the network needs).
+    pub fn macs_per_sample(&self) -> (usize, usize) {
+        let padded = self.layers.iter().map(|l| l.k * l.o).sum();
+        let real = self.layers.iter().map(|l| l.k_real * l.o_real).sum();
+        (padded, real)
+    }
+
+    /// Xavier-uniform initialisation (`U(±√(6/(fan_in+fan_out)))` on the real weights),
+    /// zeros in the padding.
+    pub fn init_params(&self, rng: &mut Rng) -> Vec<f32> {
+        let mut p = vec![0.0; self.n_params];
+        for l in &self.layers {
+            let s = (6.0 / (l.k_real + l.o_real) as f32).sqrt();
+            for kk in 0..l.k_real {
+                for j in 0..l.o_real {
+                    p[l.offset + kk * l.o + j] = rng.uniform(-s, s);
+                }
+            }
+        }
+        p
+    }
+
+    /// Runs the MLP on `n` rows of `input` (`n × input_stride()`), saving what backward needs
+    /// in `ctx`; the result is `ctx.output()` (`n × output_stride()`). One thread.
+    pub fn forward(&self, isa: Isa, params: &[f32], input: &[f32], n: usize, ctx: &mut MlpContext) {
+        assert_eq!(params.len(), self.n_params, "mlp: parameter buffer has the wrong length");
+        assert!(input.len() >= n * self.input_stride(), "mlp: input holds fewer than n rows");
+        ctx.prepare(n, self.layers.iter().map(|l| l.o));
+        let last = self.layers.len() - 1;
+        for t0 in (0..n).step_by(TILE) {
+            let rows = TILE.min(n - t0);
+            for (l, s) in self.layers.iter().enumerate() {
+                let act = if l == last { self.config.output_activation } else { self.config.hidden_activation };
+                let (before, after) = ctx.acts.split_at_mut(l);
+                let x = if l == 0 {
+                    &input[t0 * s.k..(t0 + rows) * s.k]
+                } else {
+                    &before[l - 1][t0 * s.k..(t0 + rows) * s.k]
+                };
+                let y = &mut after[0][t0 * s.o..(t0 + rows) * s.o];
+                let w = &params[s.offset..s.offset + s.k * s.o];
+                matmul(isa, x, rows, s.k, w, s.o, y, act == Activation::Relu);
+                if !act.fused_in_kernel() {
+                    y.iter_mut().for_each(|v| *v = act.forward(*v));
+                }
+            }
+        }
+    }
+
+    /// Back-propagates `d_output` (`n × output_stride()`, dL/d of the activated outputs;
+    /// padding columns are ignored) through the pass saved in `ctx`.
+    /// dL/dweights goes to `grads` per `mode`; dL/dinput to `d_input` (`n × input_stride()`)
+    /// when given. `input` must be the forward's input. One thread.
+    #[allow(clippy::too_many_arguments)]
+    pub fn backward(
+        &self,
+        isa: Isa,
+        params: &[f32],
+        input: &[f32],
+        ctx: &MlpContext,
+        d_output: &[f32],
+        grads: &mut [f32],
+        mode: GradientMode,
+        mut d_input: Option<&mut [f32]>,
+        ws: &mut MlpWorkspace,
+    ) {
+        let n = ctx.n;
+        assert_eq!(params.len(), self.n_params, "mlp: parameter buffer has the wrong length");
+        assert_eq!(grads.len(), self.n_params, "mlp: gradient buffer has the wrong length");
+        assert!(input.len() >= n * self.input_stride(), "mlp: input holds fewer than n rows");
+        assert!(d_output.len() >= n * self.output_stride(), "mlp: d_output holds fewer than n rows");
+        if let Some(d) = d_input.as_deref() {
+            assert!(d.len() >= n * self.input_stride(), "mlp: d_input holds fewer than n rows");
+        }
+        if mode == GradientMode::Overwrite {
+            grads.fill(0.0);
+        }
+        let want_params = mode != GradientMode::Ignore;
+        if !want_params && d_input.is_none() {
+            return;
+        }
+        ws.transpose_weights(&self.layers, params);
+        let last = self.layers.len() - 1;
+        let out = self.layers[last];
+        for t0 in (0..n).step_by(TILE) {
+            let rows = TILE.min(n - t0);
+            // dz of the output layer: dy ⊙ act′(y), padding columns zeroed.
+            let y = &ctx.acts[last][t0 * out.o..(t0 + rows) * out.o];
+            let act = self.config.output_activation;
+            for b in 0..rows {
+                for j in 0..out.o {
+                    let i = b * out.o + j;
+                    ws.dz[i] = if j < out.o_real {
+                        d_output[(t0 + b) * out.o + j] * act.derivative_from_output(y[i])
+                    } else {
+                        0.0
+                    };
+                }
+            }
+            for l in (0..=last).rev() {
+                let s = self.layers[l];
+                let x = if l == 0 {
+                    &input[t0 * s.k..(t0 + rows) * s.k]
+                } else {
+                    &ctx.acts[l - 1][t0 * s.k..(t0 + rows) * s.k]
+                };
+                if want_params {
+                    matmul_tn_acc(
+                        isa,
+                        x,
+                        rows,
+                        s.k,
+                        &ws.dz[..rows * s.o],
+                        s.o,
+                        &mut grads[s.offset..s.offset + s.k * s.o],
+                    );
+                }
+                if l > 0 {
+                    // dx = dz · Wᵀ, then through the hidden activation.
+                    let wt = &ws.wt[s.offset..s.offset + s.k * s.o];
+                    matmul(isa, &ws.dz[..rows * s.o], rows, s.o, wt, s.k, &mut ws.dx[..rows * s.k], false);
+                    let act = self.config.hidden_activation;
+                    for (i, (dz, dx)) in ws.dz.iter_mut().zip(&ws.dx[..rows * s.k]).enumerate() {
+                        *dz = dx * act.derivative_from_output(x[i]);
+                    }
+                } else if let Some(d) = d_input.as_deref_mut() {
+                    let wt = &ws.wt[s.offset..s.offset + s.k * s.o];
+                    matmul(isa, &ws.dz[..rows * s.o], rows, s.o, wt, s.k, &mut d[t0 * s.k..(t0 + rows) * s.k], false);
+                }
+            }
+        }
+        if want_params {
+            // Gradients of the input-padding rows (non-zero only if the caller left junk in
+            // the padding columns) are forced to zero so padded weights stay zero.
+            let first = self.layers[0];
+            grads[first.offset + first.k_real * first.o..first.offset + first.k * first.o].fill(0.0);
+        }
+    }
+}
+
+fn matmul(isa: Isa, x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: &mut [f32], relu: bool) {
+    match isa.level() {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: an `Isa` of level Avx2 exists only when the CPU has AVX2, FMA and F16C.
+        CpuLevel::Avx2 => unsafe { avx2::matmul(x, rows, k, w, o, out, relu) },
+        #[cfg(target_arch = "aarch64")]
+        // SAFETY: an `Isa` of level Neon exists only when the CPU has NEON.
+        CpuLevel::Neon => unsafe { neon::matmul(x, rows, k, w, o, out, relu) },
+        _ => scalar::matmul(x, rows, k, w, o, out, relu),
+    }
+}
+
+fn matmul_tn_acc(isa: Isa, x: &[f32], rows: usize, k: usize, dz: &[f32], o: usize, dw: &mut [f32]) {
+    match isa.level() {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: an `Isa` of level Avx2 exists only when the CPU has AVX2, FMA and F16C.
+        CpuLevel::Avx2 => unsafe { avx2::matmul_tn_acc(x, rows, k, dz, o, dw) },
+        #[cfg(target_arch = "aarch64")]
+        // SAFETY: an `Isa` of level Neon exists only when the CPU has NEON.
+        CpuLevel::Neon => unsafe { neon::matmul_tn_acc(x, rows, k, dz, o, dw) },
+        _ => scalar::matmul_tn_acc(x, rows, k, dz, o, dw),
+    }
+}
+
+/// The public face of the layer kernels, for tests and benchmarks: `out = relu?(x·W)`.
+pub fn matmul_with(isa: Isa, x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: &mut [f32], relu: bool) {
+    assert!(o.is_multiple_of(16) && k.is_multiple_of(4), "matmul: o must be a multiple of 16, k of 4");
+    matmul(isa, x, rows, k, w, o, out, relu)
+}
+
+/// The public face of the weight-gradient kernel, for tests and benchmarks: `dw += xᵀ·dz`.
+pub fn matmul_tn_acc_with(isa: Isa, x: &[f32], rows: usize, k: usize, dz: &[f32], o: usize, dw: &mut [f32]) {
+    assert!(o.is_multiple_of(16) && k.is_multiple_of(4), "matmul_tn_acc: o must be a multiple of 16, k of 4");
+    matmul_tn_acc(isa, x, rows, k, dz, o, dw)
+}
+
+/// What [`Mlp::forward`] saves for [`Mlp::backward`]: every layer's activated output.
+/// Reused across calls; it allocates only when a batch is larger than any before.
+#[derive(Clone, Debug, Default)]
+pub struct MlpContext {
+    n: usize,
+    widths: Vec<usize>,
+    acts: Vec<Vec<f32>>,
+}
+
+impl MlpContext {
+    fn prepare(&mut self, n: usize, widths: impl Iterator<Item = usize>) {
+        self.n = n;
+        self.widths.clear();
+        self.widths.extend(widths);
+        self.acts.resize_with(self.widths.len(), Vec::new);
+        for (a, &w) in self.acts.iter_mut().zip(&self.widths) {
+            if a.len() < n * w {
+                // dynamic allocation: only when the batch grows
+                a.resize(n * w, 0.0);
+            }
+        }
+    }
+
+    /// Rows in the last forward pass.
+    pub fn n(&self) -> usize {
+        self.n
+    }
+
+    /// The network's output of the last forward pass, `n × output_stride()`.
+    pub fn output(&self) -> &[f32] {
+        match (self.acts.last(), self.widths.last()) {
+            (Some(a), Some(&w)) => &a[..self.n * w],
+            _ => &[],
+        }
+    }
+}
+
+/// Scratch for [`Mlp::backward`]: transposed weights and one tile of gradients.
+#[derive(Clone, Debug)]
+pub struct MlpWorkspace {
+    wt: Vec<f32>,
+    dz: Vec<f32>,
+    dx: Vec<f32>,
+}
+
+impl Default for MlpWorkspace {
+    fn default() -> Self {
+        MlpWorkspace { wt: Vec::new(), dz: vec![0.0; TILE * 64], dx: vec![0.0; TILE * 64] }
+    }
+}
+
+impl MlpWorkspace {
+    fn transpose_weights(&mut self, layers: &[LayerShape], params: &[f32]) {
+        self.wt.resize(params.len(), 0.0);
+        let widest = layers.iter().map(|l| l.k.max(l.o)).max().unwrap_or(0);
+        if self.dz.len() < TILE * widest {
+            self.dz.resize(TILE * widest, 0.0);
+            self.dx.resize(TILE * widest, 0.0);
+        }
+        for l in layers {
+            for kk in 0..l.k {
+                for j in 0..l.o {
+                    self.wt[l.offset + j * l.k + kk] = params[l.offset + kk * l.o + j];
+                }
+            }
+        }
+    }
+}

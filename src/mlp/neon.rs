@@ -1,0 +1,93 @@
+//! NEON MLP kernels: register tiles of 4 rows × 16 columns (16 q-register accumulators).
+//! Twin of [`super::scalar`]. Requires `o.is_multiple_of(16)` and `k.is_multiple_of(4)`.
+
+use std::arch::aarch64::*;
+
+/// NEON twin of [`super::scalar::matmul`].
+///
+/// # Safety
+/// The CPU must support NEON.
+#[target_feature(enable = "neon")]
+pub(super) unsafe fn matmul(x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: &mut [f32], relu: bool) {
+    assert!(o.is_multiple_of(16) && x.len() >= rows * k && w.len() >= k * o && out.len() >= rows * o);
+    let (xp, wp, op) = (x.as_ptr(), w.as_ptr(), out.as_mut_ptr());
+    let zero = vdupq_n_f32(0.0);
+    let mut b = 0;
+    // SAFETY (all blocks below): the assert bounds every row b < rows, column j < o, kk < k.
+    while b < rows {
+        let tile = if b + 4 <= rows { 4 } else { 1 };
+        let mut j = 0;
+        while j < o {
+            unsafe {
+                let mut c = [[zero; 4]; 4];
+                for kk in 0..k {
+                    let wv = [
+                        vld1q_f32(wp.add(kk * o + j)),
+                        vld1q_f32(wp.add(kk * o + j + 4)),
+                        vld1q_f32(wp.add(kk * o + j + 8)),
+                        vld1q_f32(wp.add(kk * o + j + 12)),
+                    ];
+                    for r in 0..tile {
+                        let xv = *xp.add((b + r) * k + kk);
+                        for q in 0..4 {
+                            c[r][q] = vfmaq_n_f32(c[r][q], wv[q], xv);
+                        }
+                    }
+                }
+                for r in 0..tile {
+                    for q in 0..4 {
+                        let v = if relu { vmaxq_f32(c[r][q], zero) } else { c[r][q] };
+                        vst1q_f32(op.add((b + r) * o + j + 4 * q), v);
+                    }
+                }
+            }
+            j += 16;
+        }
+        b += tile;
+    }
+}
+
+/// NEON twin of [`super::scalar::matmul_tn_acc`].
+///
+/// # Safety
+/// The CPU must support NEON.
+#[target_feature(enable = "neon")]
+pub(super) unsafe fn matmul_tn_acc(x: &[f32], rows: usize, k: usize, dz: &[f32], o: usize, dw: &mut [f32]) {
+    assert!(
+        o.is_multiple_of(16) && k.is_multiple_of(4) && x.len() >= rows * k && dz.len() >= rows * o && dw.len() >= k * o
+    );
+    let (xp, dp, wp) = (x.as_ptr(), dz.as_ptr(), dw.as_mut_ptr());
+    let zero = vdupq_n_f32(0.0);
+    let mut kk = 0;
+    // SAFETY (all blocks below): the assert bounds every row b < rows, kk + 3 < k, j + 15 < o.
+    while kk < k {
+        let mut j = 0;
+        while j < o {
+            unsafe {
+                let mut c = [[zero; 4]; 4];
+                for b in 0..rows {
+                    let dv = [
+                        vld1q_f32(dp.add(b * o + j)),
+                        vld1q_f32(dp.add(b * o + j + 4)),
+                        vld1q_f32(dp.add(b * o + j + 8)),
+                        vld1q_f32(dp.add(b * o + j + 12)),
+                    ];
+                    for r in 0..4 {
+                        let xv = *xp.add(b * k + kk + r);
+                        for q in 0..4 {
+                            c[r][q] = vfmaq_n_f32(c[r][q], dv[q], xv);
+                        }
+                    }
+                }
+                for r in 0..4 {
+                    for q in 0..4 {
+                        let p = wp.add((kk + r) * o + j + 4 * q);
+                        vst1q_f32(p, vaddq_f32(vld1q_f32(p), c[r][q]));
+                    }
+                }
+            }
+            j += 16;
+        }
+        kk += 4;
+    }
+}

@@ -1,0 +1,34 @@
+//! Scalar MLP kernels: the specification of the SIMD twins.
+//!
+//! Shapes: `x` is `rows × k`, `w` is `k × o` (row-major, k-major), `out` is `rows × o`.
+
+/// `out[b][j] = act(Σ_kk x[b][kk] · w[kk][j])` with `act` ReLU when `relu`, else identity.
+pub fn matmul(x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: &mut [f32], relu: bool) {
+    for b in 0..rows {
+        let row = &mut out[b * o..(b + 1) * o];
+        row.fill(0.0);
+        for kk in 0..k {
+            let xv = x[b * k + kk];
+            for (r, wv) in row.iter_mut().zip(&w[kk * o..(kk + 1) * o]) {
+                *r += xv * wv;
+            }
+        }
+        if relu {
+            for r in row.iter_mut() {
+                *r = r.max(0.0);
+            }
+        }
+    }
+}
+
+/// `dw[kk][j] += Σ_b x[b][kk] · dz[b][j]` (the weight gradient `xᵀ·dz`).
+pub fn matmul_tn_acc(x: &[f32], rows: usize, k: usize, dz: &[f32], o: usize, dw: &mut [f32]) {
+    for b in 0..rows {
+        for kk in 0..k {
+            let xv = x[b * k + kk];
+            for (d, g) in dw[kk * o..(kk + 1) * o].iter_mut().zip(&dz[b * o..(b + 1) * o]) {
+                *d += xv * g;
+            }
+        }
+    }
+}

@@ -1,0 +1,187 @@
+//! CPU levels and run-time dispatch.
+//!
+//! Every hot kernel exists once per [`CpuLevel`]: a portable `_scalar` twin that is its
+//! specification, and hand-written SIMD for AVX2+FMA+F16C (x86_64) and NEON (aarch64).
+//! The level is **detected once at run time** — never chosen only at compile time — so a
+//! robot build for a generic target still runs the vector code its CPU has.
+//!
+//! An [`Isa`] value is proof that the host supports its level: the only ways to obtain one
+//! are [`Isa::scalar`], [`Isa::detect`], [`Isa::new`] and [`Isa::all`], which check the CPU.
+//! Kernels therefore take an `Isa` and may call `#[target_feature]` code without re-checking.
+//!
+//! The environment variable `RNERF_CPU_LEVEL` (`scalar`, `avx2`, `neon`) may **lower** the
+//! level (for testing and for bisecting a numeric difference); a value above what the host
+//! has is ignored with a warning, never obeyed.
+
+#[cfg(target_arch = "aarch64")]
+pub(crate) mod neon;
+
+use std::fmt;
+use std::sync::OnceLock;
+
+/// Name of the environment variable that may lower the CPU level.
+pub const CPU_LEVEL_ENV: &str = "RNERF_CPU_LEVEL";
+
+/// Ordered instruction-set levels: `Scalar` < `Avx2` on x86_64, `Scalar` < `Neon` on aarch64.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum CpuLevel {
+    /// Portable Rust, no explicit SIMD. Every kernel's reference.
+    Scalar,
+    /// x86_64 with AVX2, FMA and F16C (Haswell / Zen 1 and later).
+    Avx2,
+    /// aarch64 Advanced SIMD (NEON; part of every ARMv8-A core).
+    Neon,
+}
+
+impl CpuLevel {
+    /// The name used by `RNERF_CPU_LEVEL` and printed by `rnerf bench`.
+    pub fn name(self) -> &'static str {
+        match self {
+            CpuLevel::Scalar => "scalar",
+            CpuLevel::Avx2 => "avx2",
+            CpuLevel::Neon => "neon",
+        }
+    }
+
+    /// Parses a level name (`scalar`, `avx2`, `neon`), case-insensitively.
+    pub fn parse(s: &str) -> Option<CpuLevel> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "scalar" => Some(CpuLevel::Scalar),
+            "avx2" => Some(CpuLevel::Avx2),
+            "neon" => Some(CpuLevel::Neon),
+            _ => None,
+        }
+    }
+
+    /// Whether this CPU can execute the level's instructions.
+    pub fn host_supports(self) -> bool {
+        match self {
+            CpuLevel::Scalar => true,
+            CpuLevel::Avx2 => host_has_avx2(),
+            CpuLevel::Neon => host_has_neon(),
+        }
+    }
+
+    /// The highest level the host supports, ignoring `RNERF_CPU_LEVEL`.
+    pub fn host_max() -> CpuLevel {
+        if host_has_avx2() {
+            CpuLevel::Avx2
+        } else if host_has_neon() {
+            CpuLevel::Neon
+        } else {
+            CpuLevel::Scalar
+        }
+    }
+}
+
+impl fmt::Display for CpuLevel {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+fn host_has_avx2() -> bool {
+    is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma") && is_x86_feature_detected!("f16c")
+}
+#[cfg(not(target_arch = "x86_64"))]
+fn host_has_avx2() -> bool {
+    false
+}
+
+#[cfg(target_arch = "aarch64")]
+fn host_has_neon() -> bool {
+    std::arch::is_aarch64_feature_detected!("neon")
+}
+#[cfg(not(target_arch = "aarch64"))]
+fn host_has_neon() -> bool {
+    false
+}
+
+/// A CPU level the host is known to support. Holding one proves it (see the module docs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct Isa(CpuLevel);
+
+impl Isa {
+    /// The portable level; always available.
+    pub const fn scalar() -> Isa {
+        Isa(CpuLevel::Scalar)
+    }
+
+    /// `Some` when the host supports `level`.
+    pub fn new(level: CpuLevel) -> Option<Isa> {
+        level.host_supports().then_some(Isa(level))
+    }
+
+    /// The level kernels use by default: the host's best, lowered by `RNERF_CPU_LEVEL`.
+    /// Detected once per process.
+    pub fn detect() -> Isa {
+        static DETECTED: OnceLock<Isa> = OnceLock::new();
+        *DETECTED.get_or_init(|| {
+            let host = CpuLevel::host_max();
+            let Ok(value) = std::env::var(CPU_LEVEL_ENV) else {
+                return Isa(host);
+            };
+            match CpuLevel::parse(&value) {
+                Some(asked) if asked == CpuLevel::Scalar || asked == host => Isa(asked),
+                Some(asked) => {
+                    eprintln!(
+                        "warning: {CPU_LEVEL_ENV}={value}: this CPU does not support {asked}; using {host} \
+                         (the variable may lower the level, never raise it)"
+                    );
+                    Isa(host)
+                }
+                None => {
+                    eprintln!("warning: {CPU_LEVEL_ENV}={value} is not one of scalar, avx2, neon; using {host}");
+                    Isa(host)
+                }
+            }
+        })
+    }
+
+    /// Every level the host supports up to the detected one, lowest first. Tests run each
+    /// kernel on each of these; with `RNERF_CPU_LEVEL=scalar` this is just `[scalar]`.
+    pub fn all() -> Vec<Isa> {
+        let top = Isa::detect();
+        [CpuLevel::Scalar, CpuLevel::Avx2, CpuLevel::Neon]
+            .into_iter()
+            .filter(|&l| l <= top.0)
+            .filter_map(Isa::new)
+            .collect()
+    }
+
+    /// The level this value stands for.
+    pub fn level(self) -> CpuLevel {
+        self.0
+    }
+}
+
+impl fmt::Display for Isa {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        self.0.fmt(f)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn levels_are_ordered_and_named() {
+        assert!(CpuLevel::Scalar < CpuLevel::Avx2);
+        assert!(CpuLevel::Scalar < CpuLevel::Neon);
+        for l in [CpuLevel::Scalar, CpuLevel::Avx2, CpuLevel::Neon] {
+            assert_eq!(CpuLevel::parse(l.name()), Some(l));
+        }
+        assert_eq!(CpuLevel::parse("sse9"), None);
+    }
+
+    #[test]
+    fn detected_level_is_supported_and_all_starts_with_scalar() {
+        let d = Isa::detect();
+        assert!(d.level().host_supports());
+        let all = Isa::all();
+        assert_eq!(all[0], Isa::scalar());
+        assert_eq!(*all.last().unwrap(), d);
+    }
+}

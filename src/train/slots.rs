@@ -1,0 +1,44 @@
+//! Thread-count-independent gradient reduction.
+//!
+//! A batch is cut into [`SLOTS`] contiguous parts whose boundaries depend only on the batch
+//! size. Each part accumulates its parameter gradient in its own buffer in sample order, on
+//! whatever thread rayon picks; the buffers are then summed in slot order. The floating-point
+//! operations, and so the result, are the same on 1 thread or 64.
+
+use std::ops::Range;
+
+/// Parts a batch is cut into (enough to keep 8 cores busy; each costs one gradient buffer).
+pub const SLOTS: usize = 8;
+
+/// The sample range of slot `s` in a batch of `n`.
+pub fn slot_range(n: usize, s: usize) -> Range<usize> {
+    (n * s / SLOTS)..(n * (s + 1) / SLOTS)
+}
+
+/// `out = Σ_s slot_grads[s]`, summed in slot order.
+pub fn reduce_in_order(slot_grads: &[Vec<f32>], out: &mut [f32]) {
+    out.fill(0.0);
+    for g in slot_grads {
+        for (o, v) in out.iter_mut().zip(g) {
+            *o += v;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn slots_tile_the_batch() {
+        for n in [0, 1, 7, 8, 9, 1000] {
+            let mut next = 0;
+            for s in 0..SLOTS {
+                let r = slot_range(n, s);
+                assert_eq!(r.start, next);
+                next = r.end;
+            }
+            assert_eq!(next, n);
+        }
+    }
+}

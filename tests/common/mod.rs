@@ -1,0 +1,99 @@
+//! Shared helpers of the integration tests: proptest case counts and f64 reference
+//! implementations written from DESIGN §2.1, independent of the crate's kernels.
+#![allow(dead_code)]
+
+use proptest::test_runner::Config;
+use residual_nerf::encoding::hashgrid::{unpack_entry, LevelInfo, PRIME_Y, PRIME_Z};
+use residual_nerf::encoding::HashGrid;
+use residual_nerf::mlp::{Activation, Mlp};
+
+/// Proptest config: `default` cases unless `PROPTEST_CASES` says otherwise.
+pub fn cases(default: u32) -> Config {
+    let cases = std::env::var("PROPTEST_CASES").ok().and_then(|v| v.parse().ok()).unwrap_or(default);
+    Config { cases, failure_persistence: None, ..Config::default() }
+}
+
+/// f64 hash-grid encoding of `p` with parameters `params` (entry-major pairs).
+pub fn grid_encode_f64(grid: &HashGrid, params: &[f64], p: [f64; 3]) -> Vec<f64> {
+    let mut out = vec![0.0; grid.output_width()];
+    for (l, level) in grid.levels().iter().enumerate() {
+        if !p.iter().all(|v| (0.0..=1.0).contains(v)) {
+            continue;
+        }
+        let r = level.resolution as f64;
+        let mut cell = [0u32; 3];
+        let mut w = [0f64; 3];
+        for k in 0..3 {
+            let q = p[k] * r;
+            let f = q.floor().min(r - 1.0);
+            cell[k] = f as u32;
+            w[k] = q - f;
+        }
+        for c in 0..8u32 {
+            let b = [c & 1, (c >> 1) & 1, (c >> 2) & 1];
+            let i = ref_index(level, cell[0] + b[0], cell[1] + b[1], cell[2] + b[2]);
+            let mut wt = 1.0;
+            for k in 0..3 {
+                wt *= if b[k] == 1 { w[k] } else { 1.0 - w[k] };
+            }
+            let e = level.offset + i as usize;
+            out[2 * l] += wt * params[2 * e];
+            out[2 * l + 1] += wt * params[2 * e + 1];
+        }
+    }
+    out
+}
+
+/// DESIGN §2.1's index: dense `x + y(N+1) + z(N+1)²` or `(x ⊕ y·π₂ ⊕ z·π₃) mod T`.
+pub fn ref_index(level: &LevelInfo, x: u32, y: u32, z: u32) -> u64 {
+    if level.dense {
+        let s = level.resolution as u64 + 1;
+        x as u64 + y as u64 * s + z as u64 * s * s
+    } else {
+        let h = (x as u64) ^ ((y as u64 * PRIME_Y as u64) & 0xFFFF_FFFF) ^ ((z as u64 * PRIME_Z as u64) & 0xFFFF_FFFF);
+        h % level.size as u64
+    }
+}
+
+/// The table's fp16 values as f64 parameters.
+pub fn table_as_f64(table: &[u32]) -> Vec<f64> {
+    table.iter().flat_map(|&e| unpack_entry(e)).map(|v| v as f64).collect()
+}
+
+/// f64 MLP forward over one input row (unpadded width `input`), weights in the crate's
+/// padded layout; returns every layer's activated output (unpadded widths).
+pub fn mlp_forward_f64<const W: usize>(mlp: &Mlp<W>, params: &[f64], x: &[f64]) -> Vec<Vec<f64>> {
+    let cfg = mlp.config();
+    let last = mlp.layers().len() - 1;
+    let mut acts: Vec<Vec<f64>> = Vec::new();
+    let mut cur = x.to_vec();
+    for (l, s) in mlp.layers().iter().enumerate() {
+        let act = if l == last { cfg.output_activation } else { cfg.hidden_activation };
+        let y: Vec<f64> = (0..s.o_real)
+            .map(|j| {
+                let z: f64 = (0..s.k_real).map(|kk| cur[kk] * params[s.offset + kk * s.o + j]).sum();
+                act_f64(act, z)
+            })
+            .collect();
+        acts.push(y.clone());
+        cur = y;
+    }
+    acts
+}
+
+pub fn act_f64(a: Activation, x: f64) -> f64 {
+    match a {
+        Activation::None => x,
+        Activation::Relu => x.max(0.0),
+        Activation::Sigmoid => 1.0 / (1.0 + (-x).exp()),
+        Activation::TruncExp => x.exp(),
+    }
+}
+
+/// |a − b| ≤ atol + rtol·|b|, with a message naming `what` and the index.
+pub fn assert_close(a: &[f32], b: &[f32], atol: f32, rtol: f32, what: &str) {
+    assert_eq!(a.len(), b.len(), "{what}: lengths differ");
+    for (i, (x, y)) in a.iter().zip(b).enumerate() {
+        assert!((x - y).abs() <= atol + rtol * y.abs(), "{what}[{i}]: {x} vs {y} (atol {atol}, rtol {rtol})");
+    }
+}
