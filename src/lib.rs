@@ -33,6 +33,7 @@
 //! ```
 
 pub mod bench;
+pub mod cli;
 pub mod demo;
 pub mod encoding;
 pub mod mlp;

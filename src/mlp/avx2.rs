@@ -3,6 +3,7 @@
 //! both ports), the weight row loaded once per k and each input broadcast.
 //! Twin of [`super::scalar`]. Requires `o % 16 == 0` and `k % 4 == 0` (widths are padded to 16).
 
+use crate::simd::{CpuLevel, Isa};
 use std::arch::x86_64::*;
 
 /// Rows per register tile in the main loop.
@@ -54,7 +55,7 @@ unsafe fn tile_fwd<const RR: usize>(
 /// # Safety
 /// The CPU must support AVX2 and FMA.
 #[target_feature(enable = "avx2,fma")]
-pub(super) unsafe fn matmul(x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: &mut [f32], relu: bool) {
+unsafe fn matmul_unchecked(x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: &mut [f32], relu: bool) {
     assert!(o.is_multiple_of(16) && x.len() >= rows * k && w.len() >= k * o && out.len() >= rows * o);
     let (xp, wp, op) = (x.as_ptr(), w.as_ptr(), out.as_mut_ptr());
     let mut b = 0;
@@ -129,7 +130,7 @@ unsafe fn tile_tn<const KK: usize>(
 /// # Safety
 /// The CPU must support AVX2 and FMA.
 #[target_feature(enable = "avx2,fma")]
-pub(super) unsafe fn matmul_tn_acc(x: &[f32], rows: usize, k: usize, dz: &[f32], o: usize, dw: &mut [f32]) {
+unsafe fn matmul_tn_acc_unchecked(x: &[f32], rows: usize, k: usize, dz: &[f32], o: usize, dw: &mut [f32]) {
     assert!(o.is_multiple_of(16) && x.len() >= rows * k && dz.len() >= rows * o && dw.len() >= k * o);
     let (xp, dp, wp) = (x.as_ptr(), dz.as_ptr(), dw.as_mut_ptr());
     for j in (0..o).step_by(16) {
@@ -149,4 +150,18 @@ pub(super) unsafe fn matmul_tn_acc(x: &[f32], rows: usize, k: usize, dz: &[f32],
             unsafe { tile_tn::<1>(xp, rows, k, dp, o, wp, kk, j) };
         }
     }
+}
+
+/// Safe entry point of [`matmul_unchecked`]: `isa` proves the CPU has AVX2, FMA and F16C.
+pub(super) fn matmul(isa: Isa, x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: &mut [f32], relu: bool) {
+    assert_eq!(isa.level(), CpuLevel::Avx2, "matmul: called with the wrong CPU level");
+    // SAFETY: an `Isa` of level Avx2 exists only when the CPU has AVX2, FMA and F16C.
+    unsafe { matmul_unchecked(x, rows, k, w, o, out, relu) }
+}
+
+/// Safe entry point of [`matmul_tn_acc_unchecked`]: `isa` proves the CPU has AVX2, FMA and F16C.
+pub(super) fn matmul_tn_acc(isa: Isa, x: &[f32], rows: usize, k: usize, dz: &[f32], o: usize, dw: &mut [f32]) {
+    assert_eq!(isa.level(), CpuLevel::Avx2, "matmul_tn_acc: called with the wrong CPU level");
+    // SAFETY: an `Isa` of level Avx2 exists only when the CPU has AVX2, FMA and F16C.
+    unsafe { matmul_tn_acc_unchecked(x, rows, k, dz, o, dw) }
 }

@@ -266,11 +266,9 @@ impl<const W: usize> Mlp<W> {
 fn matmul(isa: Isa, x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: &mut [f32], relu: bool) {
     match isa.level() {
         #[cfg(target_arch = "x86_64")]
-        // SAFETY: an `Isa` of level Avx2 exists only when the CPU has AVX2, FMA and F16C.
-        CpuLevel::Avx2 => unsafe { avx2::matmul(x, rows, k, w, o, out, relu) },
+        CpuLevel::Avx2 => avx2::matmul(isa, x, rows, k, w, o, out, relu),
         #[cfg(target_arch = "aarch64")]
-        // SAFETY: an `Isa` of level Neon exists only when the CPU has NEON.
-        CpuLevel::Neon => unsafe { neon::matmul(x, rows, k, w, o, out, relu) },
+        CpuLevel::Neon => neon::matmul(isa, x, rows, k, w, o, out, relu),
         _ => scalar::matmul(x, rows, k, w, o, out, relu),
     }
 }
@@ -278,11 +276,9 @@ fn matmul(isa: Isa, x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: 
 fn matmul_tn_acc(isa: Isa, x: &[f32], rows: usize, k: usize, dz: &[f32], o: usize, dw: &mut [f32]) {
     match isa.level() {
         #[cfg(target_arch = "x86_64")]
-        // SAFETY: an `Isa` of level Avx2 exists only when the CPU has AVX2, FMA and F16C.
-        CpuLevel::Avx2 => unsafe { avx2::matmul_tn_acc(x, rows, k, dz, o, dw) },
+        CpuLevel::Avx2 => avx2::matmul_tn_acc(isa, x, rows, k, dz, o, dw),
         #[cfg(target_arch = "aarch64")]
-        // SAFETY: an `Isa` of level Neon exists only when the CPU has NEON.
-        CpuLevel::Neon => unsafe { neon::matmul_tn_acc(x, rows, k, dz, o, dw) },
+        CpuLevel::Neon => neon::matmul_tn_acc(isa, x, rows, k, dz, o, dw),
         _ => scalar::matmul_tn_acc(x, rows, k, dz, o, dw),
     }
 }

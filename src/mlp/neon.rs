@@ -1,6 +1,7 @@
 //! NEON MLP kernels: register tiles of 4 rows × 16 columns (16 q-register accumulators).
 //! Twin of [`super::scalar`]. Requires `o.is_multiple_of(16)` and `k.is_multiple_of(4)`.
 
+use crate::simd::{CpuLevel, Isa};
 use std::arch::aarch64::*;
 
 /// NEON twin of [`super::scalar::matmul`].
@@ -8,16 +9,16 @@ use std::arch::aarch64::*;
 /// # Safety
 /// The CPU must support NEON.
 #[target_feature(enable = "neon")]
-pub(super) unsafe fn matmul(x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: &mut [f32], relu: bool) {
+unsafe fn matmul_unchecked(x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: &mut [f32], relu: bool) {
     assert!(o.is_multiple_of(16) && x.len() >= rows * k && w.len() >= k * o && out.len() >= rows * o);
     let (xp, wp, op) = (x.as_ptr(), w.as_ptr(), out.as_mut_ptr());
     let zero = vdupq_n_f32(0.0);
     let mut b = 0;
-    // SAFETY (all blocks below): the assert bounds every row b < rows, column j < o, kk < k.
     while b < rows {
         let tile = if b + 4 <= rows { 4 } else { 1 };
         let mut j = 0;
         while j < o {
+            // SAFETY: b + tile <= rows, j + 16 <= o, kk < k; the assert bounds x, w and out.
             unsafe {
                 let mut c = [[zero; 4]; 4];
                 for kk in 0..k {
@@ -52,17 +53,17 @@ pub(super) unsafe fn matmul(x: &[f32], rows: usize, k: usize, w: &[f32], o: usiz
 /// # Safety
 /// The CPU must support NEON.
 #[target_feature(enable = "neon")]
-pub(super) unsafe fn matmul_tn_acc(x: &[f32], rows: usize, k: usize, dz: &[f32], o: usize, dw: &mut [f32]) {
+unsafe fn matmul_tn_acc_unchecked(x: &[f32], rows: usize, k: usize, dz: &[f32], o: usize, dw: &mut [f32]) {
     assert!(
         o.is_multiple_of(16) && k.is_multiple_of(4) && x.len() >= rows * k && dz.len() >= rows * o && dw.len() >= k * o
     );
     let (xp, dp, wp) = (x.as_ptr(), dz.as_ptr(), dw.as_mut_ptr());
     let zero = vdupq_n_f32(0.0);
     let mut kk = 0;
-    // SAFETY (all blocks below): the assert bounds every row b < rows, kk + 3 < k, j + 15 < o.
     while kk < k {
         let mut j = 0;
         while j < o {
+            // SAFETY: kk + 4 <= k, j + 16 <= o, b < rows; the assert bounds x, dz and dw.
             unsafe {
                 let mut c = [[zero; 4]; 4];
                 for b in 0..rows {
@@ -90,4 +91,18 @@ pub(super) unsafe fn matmul_tn_acc(x: &[f32], rows: usize, k: usize, dz: &[f32],
         }
         kk += 4;
     }
+}
+
+/// Safe entry point of [`matmul_unchecked`]: `isa` proves the CPU has NEON.
+pub(super) fn matmul(isa: Isa, x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: &mut [f32], relu: bool) {
+    assert_eq!(isa.level(), CpuLevel::Neon, "matmul: called with the wrong CPU level");
+    // SAFETY: an `Isa` of level Neon exists only when the CPU has NEON.
+    unsafe { matmul_unchecked(x, rows, k, w, o, out, relu) }
+}
+
+/// Safe entry point of [`matmul_tn_acc_unchecked`]: `isa` proves the CPU has NEON.
+pub(super) fn matmul_tn_acc(isa: Isa, x: &[f32], rows: usize, k: usize, dz: &[f32], o: usize, dw: &mut [f32]) {
+    assert_eq!(isa.level(), CpuLevel::Neon, "matmul_tn_acc: called with the wrong CPU level");
+    // SAFETY: an `Isa` of level Neon exists only when the CPU has NEON.
+    unsafe { matmul_tn_acc_unchecked(x, rows, k, dz, o, dw) }
 }

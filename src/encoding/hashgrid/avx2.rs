@@ -2,6 +2,7 @@
 //! (each lane fetches a packed fp16 pair), `vcvtph2ps` to expand. Twin of [`super::scalar`].
 
 use super::{LevelInfo, Soa, PRIME_Y, PRIME_Z};
+use crate::simd::{CpuLevel, Isa};
 use std::arch::x86_64::*;
 
 /// Corner indices and weights of samples `i..i+8` (weights zeroed outside the unit cube,
@@ -69,7 +70,7 @@ unsafe fn corners8(level: &LevelInfo, soa: &Soa, i: usize) -> ([__m256i; 8], [__
 /// # Safety
 /// The CPU must support AVX2, FMA and F16C; `table` is the level's slice.
 #[target_feature(enable = "avx2,fma,f16c")]
-pub(super) unsafe fn forward_level(
+unsafe fn forward_level_unchecked(
     level: &LevelInfo,
     table: &[u32],
     soa: &Soa,
@@ -116,7 +117,7 @@ pub(super) unsafe fn forward_level(
 /// # Safety
 /// The CPU must support AVX2, FMA and F16C; `grads` is the level's slice.
 #[target_feature(enable = "avx2,fma,f16c")]
-pub(super) unsafe fn backward_level(
+unsafe fn backward_level_unchecked(
     level: &LevelInfo,
     grads: &mut [f32],
     soa: &Soa,
@@ -146,4 +147,34 @@ pub(super) unsafe fn backward_level(
         }
         i += 8;
     }
+}
+
+/// Safe entry point of [`forward_level_unchecked`]: `isa` proves the CPU has AVX2, FMA and F16C.
+pub(super) fn forward_level(
+    isa: Isa,
+    level: &LevelInfo,
+    table: &[u32],
+    soa: &Soa,
+    n: usize,
+    out: &mut [f32],
+    stride: usize,
+) {
+    assert_eq!(isa.level(), CpuLevel::Avx2, "forward_level: called with the wrong CPU level");
+    // SAFETY: an `Isa` of level Avx2 exists only when the CPU has AVX2, FMA and F16C.
+    unsafe { forward_level_unchecked(level, table, soa, n, out, stride) }
+}
+
+/// Safe entry point of [`backward_level_unchecked`]: `isa` proves the CPU has AVX2, FMA and F16C.
+pub(super) fn backward_level(
+    isa: Isa,
+    level: &LevelInfo,
+    grads: &mut [f32],
+    soa: &Soa,
+    n: usize,
+    d: &[f32],
+    stride: usize,
+) {
+    assert_eq!(isa.level(), CpuLevel::Avx2, "backward_level: called with the wrong CPU level");
+    // SAFETY: an `Isa` of level Avx2 exists only when the CPU has AVX2, FMA and F16C.
+    unsafe { backward_level_unchecked(level, grads, soa, n, d, stride) }
 }

@@ -167,11 +167,9 @@ impl HashGrid {
                 let out = &mut out[2 * l..];
                 match isa.level() {
                     #[cfg(target_arch = "x86_64")]
-                    // SAFETY: an `Isa` of level Avx2 exists only when the CPU has AVX2, FMA and F16C.
-                    CpuLevel::Avx2 => unsafe { avx2::forward_level(level, t, &soa, pos.len(), out, width) },
+                    CpuLevel::Avx2 => avx2::forward_level(isa, level, t, &soa, pos.len(), out, width),
                     #[cfg(target_arch = "aarch64")]
-                    // SAFETY: an `Isa` of level Neon exists only when the CPU has NEON.
-                    CpuLevel::Neon => unsafe { neon::forward_level(level, t, &soa, pos.len(), out, width) },
+                    CpuLevel::Neon => neon::forward_level(isa, level, t, &soa, pos.len(), out, width),
                     _ => scalar::forward_level(level, t, &soa, pos.len(), out, width),
                 }
             }
@@ -224,11 +222,9 @@ impl HashGrid {
                 let d = &d_out[c * CHUNK * width + 2 * l..];
                 match isa.level() {
                     #[cfg(target_arch = "x86_64")]
-                    // SAFETY: an `Isa` of level Avx2 exists only when the CPU has AVX2, FMA and F16C.
-                    CpuLevel::Avx2 => unsafe { avx2::backward_level(level, g, &soa, pos.len(), d, width) },
+                    CpuLevel::Avx2 => avx2::backward_level(isa, level, g, &soa, pos.len(), d, width),
                     #[cfg(target_arch = "aarch64")]
-                    // SAFETY: an `Isa` of level Neon exists only when the CPU has NEON.
-                    CpuLevel::Neon => unsafe { neon::backward_level(level, g, &soa, pos.len(), d, width) },
+                    CpuLevel::Neon => neon::backward_level(isa, level, g, &soa, pos.len(), d, width),
                     _ => scalar::backward_level(level, g, &soa, pos.len(), d, width),
                 }
             }

@@ -4,6 +4,7 @@
 
 use super::{LevelInfo, Soa, PRIME_Y, PRIME_Z};
 use crate::simd::neon::cvt_f16x4_f32x4;
+use crate::simd::{CpuLevel, Isa};
 use std::arch::aarch64::*;
 
 #[inline(always)]
@@ -64,7 +65,7 @@ unsafe fn corners4(level: &LevelInfo, soa: &Soa, i: usize) -> ([uint32x4_t; 8], 
 /// # Safety
 /// The CPU must support NEON; `table` is the level's slice.
 #[target_feature(enable = "neon")]
-pub(super) unsafe fn forward_level(
+unsafe fn forward_level_unchecked(
     level: &LevelInfo,
     table: &[u32],
     soa: &Soa,
@@ -112,7 +113,7 @@ pub(super) unsafe fn forward_level(
 /// # Safety
 /// The CPU must support NEON; `grads` is the level's slice.
 #[target_feature(enable = "neon")]
-pub(super) unsafe fn backward_level(
+unsafe fn backward_level_unchecked(
     level: &LevelInfo,
     grads: &mut [f32],
     soa: &Soa,
@@ -142,4 +143,34 @@ pub(super) unsafe fn backward_level(
         }
         i += 4;
     }
+}
+
+/// Safe entry point of [`forward_level_unchecked`]: `isa` proves the CPU has NEON.
+pub(super) fn forward_level(
+    isa: Isa,
+    level: &LevelInfo,
+    table: &[u32],
+    soa: &Soa,
+    n: usize,
+    out: &mut [f32],
+    stride: usize,
+) {
+    assert_eq!(isa.level(), CpuLevel::Neon, "forward_level: called with the wrong CPU level");
+    // SAFETY: an `Isa` of level Neon exists only when the CPU has NEON.
+    unsafe { forward_level_unchecked(level, table, soa, n, out, stride) }
+}
+
+/// Safe entry point of [`backward_level_unchecked`]: `isa` proves the CPU has NEON.
+pub(super) fn backward_level(
+    isa: Isa,
+    level: &LevelInfo,
+    grads: &mut [f32],
+    soa: &Soa,
+    n: usize,
+    d: &[f32],
+    stride: usize,
+) {
+    assert_eq!(isa.level(), CpuLevel::Neon, "backward_level: called with the wrong CPU level");
+    // SAFETY: an `Isa` of level Neon exists only when the CPU has NEON.
+    unsafe { backward_level_unchecked(level, grads, soa, n, d, stride) }
 }

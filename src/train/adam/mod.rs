@@ -130,11 +130,9 @@ pub fn step_kernel(
     assert!(g.len() == n && m.len() == n && v.len() == n && mirror.as_ref().is_none_or(|h| h.len() == n));
     match isa.level() {
         #[cfg(target_arch = "x86_64")]
-        // SAFETY: an `Isa` of level Avx2 exists only when the CPU has AVX2, FMA and F16C.
-        CpuLevel::Avx2 => unsafe { avx2::step(hp, p, g, m, v, mirror) },
+        CpuLevel::Avx2 => avx2::step(isa, hp, p, g, m, v, mirror),
         #[cfg(target_arch = "aarch64")]
-        // SAFETY: an `Isa` of level Neon exists only when the CPU has NEON.
-        CpuLevel::Neon => unsafe { neon::step(hp, p, g, m, v, mirror) },
+        CpuLevel::Neon => neon::step(isa, hp, p, g, m, v, mirror),
         _ => scalar::step(hp, p, g, m, v, mirror),
     }
 }

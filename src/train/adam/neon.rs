@@ -3,6 +3,7 @@
 
 use super::AdamStep;
 use crate::simd::neon::cvt_f32x4_f16x4;
+use crate::simd::{CpuLevel, Isa};
 use std::arch::aarch64::*;
 
 /// NEON twin of [`super::scalar::step`].
@@ -10,7 +11,7 @@ use std::arch::aarch64::*;
 /// # Safety
 /// The CPU must support NEON; slices have equal lengths.
 #[target_feature(enable = "neon")]
-pub(super) unsafe fn step(
+unsafe fn step_unchecked(
     hp: AdamStep,
     p: &mut [f32],
     g: &[f32],
@@ -49,4 +50,19 @@ pub(super) unsafe fn step(
         i += 4;
     }
     super::scalar::step(hp, &mut p[body..], &g[body..], &mut m[body..], &mut v[body..], mirror.map(|h| &mut h[body..]));
+}
+
+/// Safe entry point of [`step_unchecked`]: `isa` proves the CPU has NEON.
+pub(super) fn step(
+    isa: Isa,
+    hp: AdamStep,
+    p: &mut [f32],
+    g: &[f32],
+    m: &mut [f32],
+    v: &mut [f32],
+    mirror: Option<&mut [u16]>,
+) {
+    assert_eq!(isa.level(), CpuLevel::Neon, "step: called with the wrong CPU level");
+    // SAFETY: an `Isa` of level Neon exists only when the CPU has NEON.
+    unsafe { step_unchecked(hp, p, g, m, v, mirror) }
 }

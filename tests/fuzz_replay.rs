@@ -1,0 +1,30 @@
+//! Replays the fuzz seed corpora (`fuzz/seeds/<target>/`) and every input that once found a
+//! bug through the same entry points as the fuzz targets: an error or a success, never a
+//! panic. Runs on stable in ordinary `cargo test`.
+
+use std::ffi::OsString;
+use std::os::unix::ffi::OsStringExt;
+use std::path::Path;
+
+fn corpus(target: &str) -> Vec<(String, Vec<u8>)> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz/seeds").join(target);
+    let mut files: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+        .map(|e| e.unwrap().path())
+        .collect();
+    files.sort();
+    assert!(!files.is_empty(), "{}: empty corpus", dir.display());
+    files.into_iter().map(|p| (p.display().to_string(), std::fs::read(&p).unwrap())).collect()
+}
+
+#[test]
+fn cli_args_corpus_never_panics() {
+    for (name, data) in corpus("cli_args") {
+        let args: Vec<OsString> = data.split(|&b| b == 0).map(|a| OsString::from_vec(a.to_vec())).collect();
+        let result = std::panic::catch_unwind(|| residual_nerf::cli::parse(args));
+        let parsed = result.unwrap_or_else(|_| panic!("{name}: the parser panicked"));
+        if let Err(e) = parsed {
+            assert!(!e.0.contains('\n'), "{name}: error is not one line: {e}");
+        }
+    }
+}
