@@ -6,7 +6,7 @@
 //! Residual-NeRF comparison once the rendering pipeline lands.)
 
 use crate::encoding::{HashGrid, HashGridConfig, HashGridParams};
-use crate::mlp::{Activation, Mlp, MlpConfig, MlpContext, MlpWorkspace};
+use crate::mlp::{Activation, Mlp, MlpConfig, MlpContext, MlpParams, MlpWorkspace};
 use crate::rng::Rng;
 use crate::simd::Isa;
 use crate::train::slots::{reduce_in_order, slot_range, SLOTS};
@@ -78,7 +78,7 @@ struct Model {
     grid: HashGrid,
     table: HashGridParams,
     mlp: Mlp<64>,
-    weights: Vec<f32>,
+    weights: MlpParams,
 }
 
 impl Model {
@@ -186,7 +186,8 @@ pub fn fit_field(cfg: &FieldFitConfig, isa: Isa, mut progress: impl FnMut(String
         let lr = schedule.lr(step);
         let half: &mut [u16] = bytemuck::cast_slice_mut(&mut model.table.table);
         adam_grid.step(isa, lr, &mut model.table.master, &grid_grads, Some(half));
-        adam_mlp.step(isa, lr, &mut model.weights, &mlp_grads, None);
+        adam_mlp.step(isa, lr, model.weights.weights_mut(), &mlp_grads, None);
+        model.weights.sync();
         if (step + 1) % 250 == 0 || step + 1 == cfg.steps {
             let mse = loss / (3 * n) as f64;
             progress(format!(
@@ -204,7 +205,7 @@ pub fn fit_field(cfg: &FieldFitConfig, isa: Isa, mut progress: impl FnMut(String
         .table
         .master
         .iter()
-        .chain(&model.weights)
+        .chain(model.weights.weights())
         .enumerate()
         .map(|(i, &p)| p as f64 * ((i % 97) as f64 + 1.0))
         .sum();

@@ -127,7 +127,7 @@ proptest! {
                 y.last().unwrap().iter().enumerate().map(|(j, v)| v * d[b * so + j] as f64).sum::<f64>()
             }).sum()
         };
-        let th: Vec<f64> = params.iter().map(|&v| v as f64).collect();
+        let th: Vec<f64> = params.weights().iter().map(|&v| v as f64).collect();
         let xs: Vec<f64> = x.iter().map(|&v| v as f64).collect();
         let h = 1e-6;
         for isa in Isa::all() {

@@ -48,6 +48,19 @@ impl Activation {
         }
     }
 
+    /// `dz[i] = dy[i] · f′(y[i])` over slices, with the activation chosen once outside the
+    /// loop so each arm is a plain (auto-vectorised) element-wise pass.
+    #[inline]
+    pub fn backward_slice(self, y: &[f32], dy: &[f32], dz: &mut [f32]) {
+        let it = dz.iter_mut().zip(y).zip(dy);
+        match self {
+            Activation::None => it.for_each(|((z, _), d)| *z = *d),
+            Activation::Relu => it.for_each(|((z, y), d)| *z = if *y > 0.0 { *d } else { 0.0 }),
+            Activation::Sigmoid => it.for_each(|((z, y), d)| *z = d * (y * (1.0 - y))),
+            Activation::TruncExp => it.for_each(|((z, y), d)| *z = d * Activation::TruncExp.derivative_from_output(*y)),
+        }
+    }
+
     /// Whether the SIMD matmul kernels apply this activation themselves (the others are
     /// applied by a scalar pass over the tile right after).
     pub(crate) fn fused_in_kernel(self) -> bool {

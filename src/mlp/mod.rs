@@ -132,7 +132,7 @@ impl<const W: usize> Mlp<W> {
 
     /// Xavier-uniform initialisation (`U(±√(6/(fan_in+fan_out)))` on the real weights),
     /// zeros in the padding.
-    pub fn init_params(&self, rng: &mut Rng) -> Vec<f32> {
+    pub fn init_params(&self, rng: &mut Rng) -> MlpParams {
         let mut p = vec![0.0; self.n_params];
         for l in &self.layers {
             let s = (6.0 / (l.k_real + l.o_real) as f32).sqrt();
@@ -142,12 +142,13 @@ impl<const W: usize> Mlp<W> {
                 }
             }
         }
-        p
+        MlpParams::new(self, p)
     }
 
     /// Runs the MLP on `n` rows of `input` (`n × input_stride()`), saving what backward needs
     /// in `ctx`; the result is `ctx.output()` (`n × output_stride()`). One thread.
-    pub fn forward(&self, isa: Isa, params: &[f32], input: &[f32], n: usize, ctx: &mut MlpContext) {
+    pub fn forward(&self, isa: Isa, params: &MlpParams, input: &[f32], n: usize, ctx: &mut MlpContext) {
+        let params = params.weights();
         assert_eq!(params.len(), self.n_params, "mlp: parameter buffer has the wrong length");
         assert!(input.len() >= n * self.input_stride(), "mlp: input holds fewer than n rows");
         ctx.prepare(n, self.layers.iter().map(|l| l.o));
@@ -180,7 +181,7 @@ impl<const W: usize> Mlp<W> {
     pub fn backward(
         &self,
         isa: Isa,
-        params: &[f32],
+        params: &MlpParams,
         input: &[f32],
         ctx: &MlpContext,
         d_output: &[f32],
@@ -190,7 +191,8 @@ impl<const W: usize> Mlp<W> {
         ws: &mut MlpWorkspace,
     ) {
         let n = ctx.n;
-        assert_eq!(params.len(), self.n_params, "mlp: parameter buffer has the wrong length");
+        assert!(params.synced, "mlp: weights changed since the last MlpParams::sync (stale transposed copy)");
+        assert_eq!(params.weights.len(), self.n_params, "mlp: parameter buffer has the wrong length");
         assert_eq!(grads.len(), self.n_params, "mlp: gradient buffer has the wrong length");
         assert!(input.len() >= n * self.input_stride(), "mlp: input holds fewer than n rows");
         assert!(d_output.len() >= n * self.output_stride(), "mlp: d_output holds fewer than n rows");
@@ -204,23 +206,17 @@ impl<const W: usize> Mlp<W> {
         if !want_params && d_input.is_none() {
             return;
         }
-        ws.transpose_weights(&self.layers, params);
+        ws.reserve(&self.layers);
         let last = self.layers.len() - 1;
         let out = self.layers[last];
         for t0 in (0..n).step_by(TILE) {
             let rows = TILE.min(n - t0);
             // dz of the output layer: dy ⊙ act′(y), padding columns zeroed.
             let y = &ctx.acts[last][t0 * out.o..(t0 + rows) * out.o];
-            let act = self.config.output_activation;
-            for b in 0..rows {
-                for j in 0..out.o {
-                    let i = b * out.o + j;
-                    ws.dz[i] = if j < out.o_real {
-                        d_output[(t0 + b) * out.o + j] * act.derivative_from_output(y[i])
-                    } else {
-                        0.0
-                    };
-                }
+            let dy = &d_output[t0 * out.o..(t0 + rows) * out.o];
+            self.config.output_activation.backward_slice(y, dy, &mut ws.dz[..rows * out.o]);
+            if out.o_real < out.o {
+                ws.dz[..rows * out.o].chunks_mut(out.o).for_each(|r| r[out.o_real..].fill(0.0));
             }
             for l in (0..=last).rev() {
                 let s = self.layers[l];
@@ -242,14 +238,11 @@ impl<const W: usize> Mlp<W> {
                 }
                 if l > 0 {
                     // dx = dz · Wᵀ, then through the hidden activation.
-                    let wt = &ws.wt[s.offset..s.offset + s.k * s.o];
+                    let wt = &params.transposed[s.offset..s.offset + s.k * s.o];
                     matmul(isa, &ws.dz[..rows * s.o], rows, s.o, wt, s.k, &mut ws.dx[..rows * s.k], false);
-                    let act = self.config.hidden_activation;
-                    for (i, (dz, dx)) in ws.dz.iter_mut().zip(&ws.dx[..rows * s.k]).enumerate() {
-                        *dz = dx * act.derivative_from_output(x[i]);
-                    }
+                    self.config.hidden_activation.backward_slice(x, &ws.dx[..rows * s.k], &mut ws.dz[..rows * s.k]);
                 } else if let Some(d) = d_input.as_deref_mut() {
-                    let wt = &ws.wt[s.offset..s.offset + s.k * s.o];
+                    let wt = &params.transposed[s.offset..s.offset + s.k * s.o];
                     matmul(isa, &ws.dz[..rows * s.o], rows, s.o, wt, s.k, &mut d[t0 * s.k..(t0 + rows) * s.k], false);
                 }
             }
@@ -332,34 +325,107 @@ impl MlpContext {
     }
 }
 
-/// Scratch for [`Mlp::backward`]: transposed weights and one tile of gradients.
+/// Scratch for [`Mlp::backward`]: one tile of gradients flowing back.
 #[derive(Clone, Debug)]
 pub struct MlpWorkspace {
-    wt: Vec<f32>,
     dz: Vec<f32>,
     dx: Vec<f32>,
 }
 
 impl Default for MlpWorkspace {
     fn default() -> Self {
-        MlpWorkspace { wt: Vec::new(), dz: vec![0.0; TILE * 64], dx: vec![0.0; TILE * 64] }
+        MlpWorkspace { dz: vec![0.0; TILE * 64], dx: vec![0.0; TILE * 64] }
     }
 }
 
 impl MlpWorkspace {
-    fn transpose_weights(&mut self, layers: &[LayerShape], params: &[f32]) {
-        self.wt.resize(params.len(), 0.0);
+    fn reserve(&mut self, layers: &[LayerShape]) {
         let widest = layers.iter().map(|l| l.k.max(l.o)).max().unwrap_or(0);
         if self.dz.len() < TILE * widest {
+            // dynamic allocation: only for a network wider than any before
             self.dz.resize(TILE * widest, 0.0);
             self.dx.resize(TILE * widest, 0.0);
         }
-        for l in layers {
+    }
+}
+
+/// An MLP's weights (flat, layer views as in [`Mlp::layers`]) and their per-layer transposes,
+/// which backward needs for dL/dx = dz·Wᵀ. Like the hash grid's fp16 mirror, the transposed
+/// copy is rewritten once per optimiser step ([`MlpParams::sync`]), not once per batch;
+/// [`MlpParams::weights_mut`] marks it stale and backward refuses stale weights.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MlpParams {
+    weights: Vec<f32>,
+    transposed: Vec<f32>,
+    layers: Vec<LayerShape>,
+    synced: bool,
+}
+
+impl MlpParams {
+    /// Wraps `weights` (length [`Mlp::n_params`]) for `mlp`.
+    pub fn new<const W: usize>(mlp: &Mlp<W>, weights: Vec<f32>) -> MlpParams {
+        assert_eq!(weights.len(), mlp.n_params(), "mlp: parameter buffer has the wrong length");
+        let mut p =
+            MlpParams { transposed: vec![0.0; weights.len()], weights, layers: mlp.layers.clone(), synced: false };
+        p.sync();
+        p
+    }
+
+    /// The weights.
+    pub fn weights(&self) -> &[f32] {
+        &self.weights
+    }
+
+    /// Mutable weights (for the optimiser); call [`MlpParams::sync`] before the next backward.
+    pub fn weights_mut(&mut self) -> &mut [f32] {
+        self.synced = false;
+        &mut self.weights
+    }
+
+    /// Rewrites the transposed copy from the weights.
+    pub fn sync(&mut self) {
+        for l in &self.layers {
             for kk in 0..l.k {
                 for j in 0..l.o {
-                    self.wt[l.offset + j * l.k + kk] = params[l.offset + kk * l.o + j];
+                    self.transposed[l.offset + j * l.k + kk] = self.weights[l.offset + kk * l.o + j];
                 }
             }
         }
+        self.synced = true;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    #[should_panic(expected = "stale transposed copy")]
+    fn backward_refuses_weights_changed_without_sync() {
+        let mlp = Mlp::<16>::new(MlpConfig {
+            input: 3,
+            output: 1,
+            hidden_layers: 1,
+            hidden_activation: Activation::Relu,
+            output_activation: Activation::None,
+        });
+        let mut params = mlp.init_params(&mut Rng::new(1));
+        let x = vec![0.5; 2 * mlp.input_stride()];
+        let mut ctx = MlpContext::default();
+        mlp.forward(Isa::scalar(), &params, &x, 2, &mut ctx);
+        params.weights_mut()[0] += 1.0;
+        let d = vec![1.0; 2 * mlp.output_stride()];
+        let mut g = vec![0.0; mlp.n_params()];
+        mlp.backward(
+            Isa::scalar(),
+            &params,
+            &x,
+            &ctx,
+            &d,
+            &mut g,
+            GradientMode::Overwrite,
+            None,
+            &mut MlpWorkspace::default(),
+        );
     }
 }
