@@ -37,6 +37,7 @@ pub mod cli;
 pub mod demo;
 pub mod encoding;
 pub mod mlp;
+pub mod render;
 pub mod rng;
 pub mod simd;
 pub mod train;
