@@ -4,9 +4,11 @@
 pub mod camera;
 pub mod composite;
 pub mod depth;
+pub mod occupancy;
 
 pub use camera::{pixel_ray, Intrinsics, Pose, Ray};
 pub use composite::{
     composite_ray, composite_ray_backward, weights_from_density, RayComposite, EARLY_STOP_TRANSMITTANCE,
 };
 pub use depth::{expected_depth, threshold_depth, DensityThreshold, DepthMethod};
+pub use occupancy::{Aabb, OccupancyConfig, OccupancyGrid, PackedSamples};

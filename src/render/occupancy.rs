@@ -1,0 +1,252 @@
+//! Occupancy grid and ray marching (DESIGN §2.5).
+//!
+//! `R³` cells (R = 128 by default) over the scene box hold the optical thickness of one
+//! minimum step, `σ·δ_min`, of the field sampled inside the cell. A cell is **occupied** when
+//! its value exceeds `min(0.01, mean)` (Instant-NGP's rule); marching visits only occupied
+//! cells, jumping across empty ones to their far boundary.
+//!
+//! Updates ([`OccupancyGrid::update`], every 16 training steps): during warm-up every cell is
+//! evaluated, afterwards ¼ of the cells at random plus ¼ chosen among the occupied ones; each
+//! at a jittered point of the cell; `cell = max(old · 0.95, new)`. The field is seen only
+//! through a density callback (nerfacc's design), so the grid serves plain and residual
+//! fields alike.
+//!
+//! Marching ([`OccupancyGrid::march`]): constant steps `δ_min = diag / steps_per_diagonal`
+//! from the entry into the box, samples at step midpoints inside occupied cells, at most
+//! `max_samples` per ray. Samples are packed: one `(start, count)` per ray into flat arrays.
+
+use crate::rng::Rng;
+use glam::Vec3;
+
+/// The scene's axis-aligned bounding box.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Aabb {
+    /// Minimum corner.
+    pub min: Vec3,
+    /// Maximum corner.
+    pub max: Vec3,
+}
+
+impl Aabb {
+    /// Size along each axis.
+    pub fn size(&self) -> Vec3 {
+        self.max - self.min
+    }
+
+    /// `p` mapped to the unit cube of the box.
+    pub fn to_unit(&self, p: Vec3) -> Vec3 {
+        (p - self.min) / self.size()
+    }
+
+    /// Entry and exit distances of a ray (unit `dir`), clipped to `t ≥ 0`; `None` if it misses.
+    pub fn intersect(&self, origin: Vec3, dir: Vec3) -> Option<(f32, f32)> {
+        let inv = dir.recip();
+        let a = (self.min - origin) * inv;
+        let b = (self.max - origin) * inv;
+        // NaN (0 · ∞ for an axis-parallel ray on a face) is treated as "no constraint".
+        let lo = a.min(b);
+        let hi = a.max(b);
+        let near = [lo.x, lo.y, lo.z].into_iter().filter(|v| !v.is_nan()).fold(0.0f32, f32::max);
+        let far = [hi.x, hi.y, hi.z].into_iter().filter(|v| !v.is_nan()).fold(f32::INFINITY, f32::min);
+        (near < far).then_some((near, far))
+    }
+}
+
+/// Occupancy-grid settings.
+#[derive(Clone, Debug, PartialEq)]
+pub struct OccupancyConfig {
+    /// Cells per axis. Defaults to 128.
+    pub resolution: u32,
+    /// Marching steps across the box diagonal (`δ_min = diag / steps`). Defaults to 1024.
+    pub steps_per_diagonal: u32,
+    /// Most samples per ray. Defaults to 1024.
+    pub max_samples: u32,
+    /// Steps whose updates evaluate every cell. Defaults to 256.
+    pub warmup_steps: u32,
+    /// Decay of a cell's value per update. Defaults to 0.95.
+    pub decay: f32,
+}
+
+impl Default for OccupancyConfig {
+    fn default() -> Self {
+        OccupancyConfig { resolution: 128, steps_per_diagonal: 1024, max_samples: 1024, warmup_steps: 256, decay: 0.95 }
+    }
+}
+
+/// Samples of a batch of rays, packed: ray `r` owns `rays[r] = (start, count)` of the flat arrays.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PackedSamples {
+    /// `(start, count)` per ray.
+    pub rays: Vec<(u32, u32)>,
+    /// Sample distance along the ray (midpoint of its step).
+    pub t: Vec<f32>,
+    /// Step length.
+    pub delta: Vec<f32>,
+}
+
+impl PackedSamples {
+    /// Total samples.
+    pub fn len(&self) -> usize {
+        self.t.len()
+    }
+
+    /// Whether there are no samples.
+    pub fn is_empty(&self) -> bool {
+        self.t.is_empty()
+    }
+
+    /// Removes everything, keeping capacity.
+    pub fn clear(&mut self) {
+        self.rays.clear();
+        self.t.clear();
+        self.delta.clear();
+    }
+}
+
+/// The grid: per-cell optical thickness and the occupancy bitfield.
+#[derive(Clone, Debug)]
+pub struct OccupancyGrid {
+    config: OccupancyConfig,
+    aabb: Aabb,
+    values: Vec<f32>,
+    bits: Vec<u64>,
+    step_size: f32,
+}
+
+impl OccupancyGrid {
+    /// A grid over `aabb` with every cell occupied (training starts by looking everywhere).
+    pub fn new(aabb: Aabb, config: OccupancyConfig) -> OccupancyGrid {
+        assert!(config.resolution >= 1 && config.resolution <= 1024, "occupancy: resolution must be 1..=1024");
+        assert!(aabb.size().min_element() > 0.0 && aabb.size().is_finite(), "occupancy: empty or infinite scene box");
+        let n = (config.resolution as usize).pow(3);
+        let step_size = aabb.size().length() / config.steps_per_diagonal.max(1) as f32;
+        OccupancyGrid { values: vec![f32::MAX; n], bits: vec![!0u64; n.div_ceil(64)], aabb, step_size, config }
+    }
+
+    /// The scene box.
+    pub fn aabb(&self) -> &Aabb {
+        &self.aabb
+    }
+
+    /// The marching step `δ_min`.
+    pub fn step_size(&self) -> f32 {
+        self.step_size
+    }
+
+    /// Number of cells.
+    pub fn cells(&self) -> usize {
+        self.values.len()
+    }
+
+    /// Fraction of cells marked occupied.
+    pub fn occupancy(&self) -> f64 {
+        let n = self.values.len();
+        let set: u64 = self.bits.iter().map(|w| w.count_ones() as u64).sum();
+        // Bits past `n` in the last word are never set by `update` but are set by `new`.
+        set.min(n as u64) as f64 / n as f64
+    }
+
+    /// Index of the cell holding unit-cube point `u` (clamped into the grid).
+    fn cell_of(&self, u: Vec3) -> usize {
+        let r = self.config.resolution;
+        let c = (u * r as f32).floor().clamp(Vec3::ZERO, Vec3::splat((r - 1) as f32)).as_uvec3();
+        (c.x + r * (c.y + r * c.z)) as usize
+    }
+
+    /// Whether the cell holding world point `p` is occupied.
+    pub fn is_occupied(&self, p: Vec3) -> bool {
+        let i = self.cell_of(self.aabb.to_unit(p));
+        self.bits[i / 64] >> (i % 64) & 1 == 1
+    }
+
+    /// One update (see the module docs). `density` fills `sigma[i]` with σ at world points
+    /// `points[i]`; it is called with batches of cells. `step` is the training step (for the
+    /// warm-up), `rng` draws the cells and jitter.
+    pub fn update(&mut self, step: u32, rng: &mut Rng, mut density: impl FnMut(&[Vec3], &mut [f32])) {
+        let n = self.values.len();
+        let r = self.config.resolution;
+        let cells: Vec<u32> = if step < self.config.warmup_steps {
+            (0..n as u32).collect()
+        } else {
+            let occupied: Vec<u32> =
+                (0..n as u32).filter(|&i| self.bits[i as usize / 64] >> (i % 64) & 1 == 1).collect();
+            let mut c: Vec<u32> = (0..n / 4).map(|_| rng.below(n as u64) as u32).collect();
+            if !occupied.is_empty() {
+                c.extend((0..n / 4).map(|_| occupied[rng.below(occupied.len() as u64) as usize]));
+            }
+            c
+        };
+        const BATCH: usize = 1 << 14;
+        let mut points = Vec::with_capacity(BATCH);
+        let mut sigma = vec![0f32; BATCH];
+        let cell_size = self.aabb.size() / r as f32;
+        let mut fresh = vec![f32::NEG_INFINITY; n];
+        for chunk in cells.chunks(BATCH) {
+            points.clear();
+            for &i in chunk {
+                let (x, y, z) = (i % r, (i / r) % r, i / (r * r));
+                let jitter = Vec3::new(rng.f32(), rng.f32(), rng.f32());
+                points.push(self.aabb.min + (Vec3::new(x as f32, y as f32, z as f32) + jitter) * cell_size);
+            }
+            density(&points, &mut sigma[..chunk.len()]);
+            for (&i, &s) in chunk.iter().zip(&sigma) {
+                let v = if s.is_finite() { s.max(0.0) * self.step_size } else { 0.0 };
+                fresh[i as usize] = fresh[i as usize].max(v);
+            }
+        }
+        for (old, new) in self.values.iter_mut().zip(&fresh) {
+            let decayed = if *old == f32::MAX { 0.0 } else { *old * self.config.decay };
+            *old = if new.is_finite() { decayed.max(*new) } else { decayed };
+        }
+        let mean = self.values.iter().map(|&v| v as f64).sum::<f64>() / n as f64;
+        let threshold = (0.01f64).min(mean) as f32;
+        self.bits.fill(0);
+        for (i, &v) in self.values.iter().enumerate() {
+            if v > threshold {
+                self.bits[i / 64] |= 1 << (i % 64);
+            }
+        }
+    }
+
+    /// Marches one ray (unit `dir`), appending its samples to `out` (and its `(start, count)`).
+    pub fn march(&self, origin: Vec3, dir: Vec3, out: &mut PackedSamples) {
+        let start = out.t.len() as u32;
+        if let Some((near, far)) = self.aabb.intersect(origin, dir) {
+            let r = self.config.resolution as f32;
+            let dt = self.step_size;
+            let mut t = near;
+            let max = self.config.max_samples as usize;
+            let mut taken = 0;
+            while t < far && taken < max {
+                let mid = t + 0.5 * dt;
+                let u = self.aabb.to_unit(origin + mid * dir);
+                let i = self.cell_of(u);
+                if self.bits[i / 64] >> (i % 64) & 1 == 1 {
+                    out.t.push(mid);
+                    out.delta.push(dt);
+                    taken += 1;
+                    t += dt;
+                } else {
+                    // Jump to the first step of the lattice `near + k·dt` whose midpoint lies past
+                    // this empty cell (samples keep the same t whatever was skipped).
+                    let c = (u * r).floor();
+                    let d = dir / self.aabb.size() * r; // cells per unit t along each axis
+                    let next = |k: usize| {
+                        let (ck, dk, uk) = (c[k], d[k], u[k] * r);
+                        if dk > 0.0 {
+                            (ck + 1.0 - uk) / dk
+                        } else if dk < 0.0 {
+                            (ck - uk) / dk
+                        } else {
+                            f32::INFINITY
+                        }
+                    };
+                    let exit = mid + next(0).min(next(1)).min(next(2)).max(0.0);
+                    let steps = ((exit - near) / dt - 0.5).floor() + 1.0;
+                    t = (near + steps * dt).max(t + dt);
+                }
+            }
+        }
+        out.rays.push((start, out.t.len() as u32 - start));
+    }
+}
