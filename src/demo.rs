@@ -9,7 +9,7 @@ use crate::encoding::{HashGrid, HashGridConfig, HashGridParams};
 use crate::mlp::{Activation, Mlp, MlpConfig, MlpContext, MlpParams, MlpWorkspace};
 use crate::rng::Rng;
 use crate::simd::Isa;
-use crate::train::slots::{reduce_in_order, slot_range, SLOTS};
+use crate::train::slots::{reduce_in_order, slot_range, split_rows, SLOTS};
 use crate::train::{Adam, AdamConfig, LrSchedule};
 use crate::GradientMode;
 use rayon::prelude::*;
@@ -210,16 +210,4 @@ pub fn fit_field(cfg: &FieldFitConfig, isa: Isa, mut progress: impl FnMut(String
         .map(|(i, &p)| p as f64 * ((i % 97) as f64 + 1.0))
         .sum();
     FieldFitReport { psnr: psnr(isa, &model, &held_out), psnr_initial, seconds, params_checksum, steps: cfg.steps }
-}
-
-/// Splits `buf` (`n` rows of `stride`) into the [`SLOTS`] row ranges of [`slot_range`].
-fn split_rows(buf: &mut [f32], n: usize, stride: usize) -> Vec<&mut [f32]> {
-    let mut parts = Vec::with_capacity(SLOTS);
-    let mut rest = &mut buf[..n * stride];
-    for s in 0..SLOTS {
-        let (head, tail) = rest.split_at_mut(slot_range(n, s).len() * stride);
-        parts.push(head);
-        rest = tail;
-    }
-    parts
 }

@@ -36,6 +36,7 @@ pub mod bench;
 pub mod cli;
 pub mod demo;
 pub mod encoding;
+pub mod field;
 pub mod mlp;
 pub mod render;
 pub mod rng;

@@ -25,6 +25,18 @@ pub fn reduce_in_order(slot_grads: &[Vec<f32>], out: &mut [f32]) {
     }
 }
 
+/// Splits `buf` (`n` rows of `stride` elements) into the [`SLOTS`] row ranges of [`slot_range`].
+pub fn split_rows<T>(buf: &mut [T], n: usize, stride: usize) -> Vec<&mut [T]> {
+    let mut parts = Vec::with_capacity(SLOTS);
+    let mut rest = &mut buf[..n * stride];
+    for s in 0..SLOTS {
+        let (head, tail) = rest.split_at_mut(slot_range(n, s).len() * stride);
+        parts.push(head);
+        rest = tail;
+    }
+    parts
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1,0 +1,303 @@
+//! The NeRF field (DESIGN §2.1): world position → hash grid → density MLP → raw density `s`
+//! and 15 geometry features; SH(direction) ⊕ features → colour MLP → pre-sigmoid colour `c′`.
+//! `σ = trunc_exp(s)` and `c = sigmoid(c′)` are applied by the caller (the renderer), because
+//! Residual-NeRF mixes the pre-activation values.
+//!
+//! Batches run in parallel at the batch level only: the grid encodes all samples (chunks on
+//! the rayon pool), the MLPs run per [`SLOTS`] slot with their own contexts and gradient
+//! buffers, reduced in slot order, and the grid backward runs one level per task — so results
+//! do not depend on the thread count.
+
+use crate::encoding::{sh4, HashGrid, HashGridConfig, HashGridParams, SH4_COEFFS};
+use crate::mlp::{Activation, Mlp, MlpConfig, MlpContext, MlpParams, MlpWorkspace};
+use crate::render::Aabb;
+use crate::rng::Rng;
+use crate::simd::Isa;
+use crate::train::slots::{reduce_in_order, slot_range, split_rows, SLOTS};
+use crate::GradientMode;
+use glam::Vec3;
+use rayon::prelude::*;
+
+/// Geometry features passed from the density to the colour network.
+pub const GEO_FEATURES: usize = 15;
+
+/// The NeRF's architecture (DESIGN §2.1).
+#[derive(Clone, Debug, PartialEq)]
+pub struct NerfConfig {
+    /// Hash-grid encoding. Defaults to [`HashGridConfig::default`].
+    pub grid: HashGridConfig,
+    /// Scene box mapped to the grid's unit cube. No default (scene specific).
+    pub aabb: Aabb,
+}
+
+/// Trainable parameters of a NeRF field.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NerfParams {
+    /// Hash-grid table (fp32 master + fp16 mirror).
+    pub grid: HashGridParams,
+    /// Density MLP 32 → 64 → 16.
+    pub density: MlpParams,
+    /// Colour MLP 31 → 64 → 64 → 3.
+    pub colour: MlpParams,
+}
+
+/// Gradients of [`NerfParams`], flat.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NerfGrads {
+    /// dL/d(grid master), entry-major pairs.
+    pub grid: Vec<f32>,
+    /// dL/d(density weights).
+    pub density: Vec<f32>,
+    /// dL/d(colour weights).
+    pub colour: Vec<f32>,
+}
+
+/// The field's geometry and kernels (parameters live in [`NerfParams`]).
+#[derive(Clone, Debug)]
+pub struct NerfField {
+    config: NerfConfig,
+    grid: HashGrid,
+    density: Mlp<64>,
+    colour: Mlp<64>,
+}
+
+/// Per-slot MLP state.
+#[derive(Clone, Debug, Default)]
+struct Slot {
+    density: MlpContext,
+    colour: MlpContext,
+    colour_in: Vec<f32>,
+    ws: MlpWorkspace,
+    d_density_out: Vec<f32>,
+    d_colour_in: Vec<f32>,
+    g_density: Vec<f32>,
+    g_colour: Vec<f32>,
+}
+
+/// What a forward pass saves (reused across batches; grows only with the batch).
+#[derive(Clone, Debug, Default)]
+pub struct FieldContext {
+    n: usize,
+    unit: Vec<[f32; 3]>,
+    enc: Vec<f32>,
+    d_enc: Vec<f32>,
+    slots: Vec<Slot>,
+}
+
+impl FieldContext {
+    /// Samples of the last forward pass.
+    pub fn len(&self) -> usize {
+        self.n
+    }
+
+    /// Whether the last forward pass had no samples.
+    pub fn is_empty(&self) -> bool {
+        self.n == 0
+    }
+}
+
+impl NerfField {
+    /// The field of `config`.
+    pub fn new(config: NerfConfig) -> NerfField {
+        let grid = HashGrid::new(config.grid.clone());
+        let density = Mlp::new(MlpConfig {
+            input: grid.output_width(),
+            output: 1 + GEO_FEATURES,
+            hidden_layers: 1,
+            hidden_activation: Activation::Relu,
+            output_activation: Activation::None,
+        });
+        let colour = Mlp::new(MlpConfig {
+            input: SH4_COEFFS + GEO_FEATURES,
+            output: 3,
+            hidden_layers: 2,
+            hidden_activation: Activation::Relu,
+            output_activation: Activation::None,
+        });
+        NerfField { config, grid, density, colour }
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &NerfConfig {
+        &self.config
+    }
+
+    /// The hash grid.
+    pub fn grid(&self) -> &HashGrid {
+        &self.grid
+    }
+
+    /// Freshly initialised parameters.
+    pub fn init_params(&self, rng: &mut Rng) -> NerfParams {
+        NerfParams {
+            grid: HashGridParams::init(&self.grid, rng),
+            density: self.density.init_params(rng),
+            colour: self.colour.init_params(rng),
+        }
+    }
+
+    /// Zeroed gradient buffers.
+    pub fn zero_grads(&self) -> NerfGrads {
+        NerfGrads {
+            grid: vec![0.0; self.grid.n_params()],
+            density: vec![0.0; self.density.n_params()],
+            colour: vec![0.0; self.colour.n_params()],
+        }
+    }
+
+    fn encode(&self, isa: Isa, params: &NerfParams, positions: &[Vec3], ctx: &mut FieldContext) {
+        let n = positions.len();
+        ctx.n = n;
+        ctx.unit.clear();
+        ctx.unit.extend(positions.iter().map(|&p| self.config.aabb.to_unit(p).to_array()));
+        let w = self.grid.output_width();
+        ctx.enc.resize(n * w, 0.0);
+        self.grid.forward_par(isa, &params.grid.table, &ctx.unit, &mut ctx.enc);
+        ctx.slots.resize_with(SLOTS, Slot::default);
+    }
+
+    /// Raw densities `s` only (the density network; no colour): for occupancy updates and
+    /// depth-only rendering. Writes `raw[i]` for `positions[i]`.
+    pub fn density(&self, isa: Isa, params: &NerfParams, positions: &[Vec3], raw: &mut [f32], ctx: &mut FieldContext) {
+        assert_eq!(raw.len(), positions.len(), "field: output length differs from the sample count");
+        self.encode(isa, params, positions, ctx);
+        let n = positions.len();
+        let (w, so) = (self.grid.output_width(), self.density.output_stride());
+        let enc = &ctx.enc;
+        let raw_parts = split_rows(raw, n, 1);
+        ctx.slots.par_iter_mut().zip(raw_parts).enumerate().for_each(|(s, (slot, out))| {
+            let r = slot_range(n, s);
+            self.density.forward(isa, &params.density, &enc[r.start * w..r.end * w], r.len(), &mut slot.density);
+            for (o, row) in out.iter_mut().zip(slot.density.output().chunks(so)) {
+                *o = row[0];
+            }
+        });
+    }
+
+    /// Full forward of samples at `positions` seen along unit `dirs`: writes raw density
+    /// `raw[i]` and pre-sigmoid colour `rgb_raw[i]`, saving what [`NerfField::backward`] needs.
+    pub fn forward(
+        &self,
+        isa: Isa,
+        params: &NerfParams,
+        positions: &[Vec3],
+        dirs: &[Vec3],
+        raw: &mut [f32],
+        rgb_raw: &mut [[f32; 3]],
+        ctx: &mut FieldContext,
+    ) {
+        let n = positions.len();
+        assert!(dirs.len() == n && raw.len() == n && rgb_raw.len() == n, "field: buffers differ from the sample count");
+        self.encode(isa, params, positions, ctx);
+        let (w, so, ci) = (self.grid.output_width(), self.density.output_stride(), self.colour.input_stride());
+        let co = self.colour.output_stride();
+        let enc = &ctx.enc;
+        let parts = split_rows(raw, n, 1).into_iter().zip(split_rows(rgb_raw, n, 1));
+        ctx.slots.par_iter_mut().zip(parts.collect::<Vec<_>>()).enumerate().for_each(|(s, (slot, (raw, rgb)))| {
+            let r = slot_range(n, s);
+            let rows = r.len();
+            self.density.forward(isa, &params.density, &enc[r.start * w..r.end * w], rows, &mut slot.density);
+            slot.colour_in.clear();
+            slot.colour_in.resize(rows * ci, 0.0);
+            for (b, (row, dens)) in slot.colour_in.chunks_mut(ci).zip(slot.density.output().chunks(so)).enumerate() {
+                row[..SH4_COEFFS].copy_from_slice(&sh4(dirs[r.start + b].to_array()));
+                row[SH4_COEFFS..SH4_COEFFS + GEO_FEATURES].copy_from_slice(&dens[1..1 + GEO_FEATURES]);
+                raw[b] = dens[0];
+            }
+            self.colour.forward(isa, &params.colour, &slot.colour_in, rows, &mut slot.colour);
+            for (o, row) in rgb.iter_mut().zip(slot.colour.output().chunks(co)) {
+                *o = [row[0], row[1], row[2]];
+            }
+        });
+    }
+
+    /// Back-propagates dL/ds (`d_raw`) and dL/dc′ (`d_rgb_raw`) of the last [`NerfField::forward`]
+    /// (same `params`) into `grads` per `mode`.
+    pub fn backward(
+        &self,
+        isa: Isa,
+        params: &NerfParams,
+        ctx: &mut FieldContext,
+        d_raw: &[f32],
+        d_rgb_raw: &[[f32; 3]],
+        grads: &mut NerfGrads,
+        mode: GradientMode,
+    ) {
+        let n = ctx.n;
+        assert!(d_raw.len() == n && d_rgb_raw.len() == n, "field: gradient buffers differ from the sample count");
+        if mode == GradientMode::Ignore {
+            return;
+        }
+        let (w, so, ci, co) = (
+            self.grid.output_width(),
+            self.density.output_stride(),
+            self.colour.input_stride(),
+            self.colour.output_stride(),
+        );
+        ctx.d_enc.resize(n * w, 0.0);
+        let enc = &ctx.enc;
+        let d_enc_parts = split_rows(&mut ctx.d_enc, n, w);
+        ctx.slots.par_iter_mut().zip(d_enc_parts).enumerate().for_each(|(s, (slot, d_enc))| {
+            let r = slot_range(n, s);
+            let rows = r.len();
+            // Colour network: dL/dc′ → weights, and dL/d(colour input) for the geometry features.
+            let mut d_col = std::mem::take(&mut slot.d_density_out);
+            d_col.clear();
+            d_col.resize(rows * co, 0.0);
+            for (b, row) in d_col.chunks_mut(co).enumerate() {
+                row[..3].copy_from_slice(&d_rgb_raw[r.start + b]);
+            }
+            slot.g_colour.clear();
+            slot.g_colour.resize(self.colour.n_params(), 0.0);
+            slot.d_colour_in.resize(rows * ci, 0.0);
+            self.colour.backward(
+                isa,
+                &params.colour,
+                &slot.colour_in,
+                &slot.colour,
+                &d_col,
+                &mut slot.g_colour,
+                GradientMode::Overwrite,
+                Some(&mut slot.d_colour_in),
+                &mut slot.ws,
+            );
+            // Density network: d_out = (dL/ds, dL/d geometry features).
+            d_col.clear();
+            d_col.resize(rows * so, 0.0);
+            for (b, row) in d_col.chunks_mut(so).enumerate() {
+                row[0] = d_raw[r.start + b];
+                row[1..1 + GEO_FEATURES]
+                    .copy_from_slice(&slot.d_colour_in[b * ci + SH4_COEFFS..b * ci + SH4_COEFFS + GEO_FEATURES]);
+            }
+            slot.g_density.clear();
+            slot.g_density.resize(self.density.n_params(), 0.0);
+            self.density.backward(
+                isa,
+                &params.density,
+                &enc[r.start * w..r.end * w],
+                &slot.density,
+                &d_col,
+                &mut slot.g_density,
+                GradientMode::Overwrite,
+                Some(d_enc),
+                &mut slot.ws,
+            );
+            slot.d_density_out = d_col;
+        });
+        let mut reduce = |pick: fn(&mut Slot) -> &mut Vec<f32>, out: &mut Vec<f32>| {
+            let parts: Vec<Vec<f32>> = ctx.slots.iter_mut().map(|s| std::mem::take(pick(s))).collect();
+            let mut sum = vec![0.0; out.len()];
+            reduce_in_order(&parts, &mut sum);
+            match mode {
+                GradientMode::Overwrite => *out = sum,
+                _ => out.iter_mut().zip(&sum).for_each(|(o, s)| *o += s),
+            }
+            for (slot, p) in ctx.slots.iter_mut().zip(parts) {
+                *pick(slot) = p;
+            }
+        };
+        reduce(|s| &mut s.g_colour, &mut grads.colour);
+        reduce(|s| &mut s.g_density, &mut grads.density);
+        self.grid.backward_params(isa, &ctx.unit, &ctx.d_enc, &mut grads.grid, mode);
+    }
+}
