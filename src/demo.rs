@@ -112,7 +112,7 @@ pub fn fit_field(cfg: &FieldFitConfig, isa: Isa, mut progress: impl FnMut(String
     let mut rng = Rng::new(cfg.seed);
     let grid = HashGrid::new(HashGridConfig { log2_table_size: cfg.log2_table_size, ..Default::default() });
     let mlp = Mlp::<64>::new(MlpConfig {
-        input: grid.output_width(),
+        input: grid.features(),
         output: 3,
         hidden_layers: 2,
         hidden_activation: Activation::Relu,

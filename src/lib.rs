@@ -34,6 +34,7 @@
 
 pub mod bench;
 pub mod cli;
+pub mod data;
 pub mod demo;
 pub mod encoding;
 pub mod field;

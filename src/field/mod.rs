@@ -100,8 +100,10 @@ impl NerfField {
     /// The field of `config`.
     pub fn new(config: NerfConfig) -> NerfField {
         let grid = HashGrid::new(config.grid.clone());
+        // The grid pads its rows exactly as the MLP pads its input (both to 16).
+        debug_assert_eq!(grid.output_width(), grid.features().div_ceil(16) * 16);
         let density = Mlp::new(MlpConfig {
-            input: grid.output_width(),
+            input: grid.features(),
             output: 1 + GEO_FEATURES,
             hidden_layers: 1,
             hidden_activation: Activation::Relu,

@@ -13,6 +13,7 @@
 //! level (for testing and for bisecting a numeric difference); a value above what the host
 //! has is ignored with a warning, never obeyed.
 
+pub mod fpmode;
 #[cfg(target_arch = "aarch64")]
 pub(crate) mod neon;
 

@@ -1,7 +1,8 @@
-//! Training: the optimiser and its learning-rate schedule (the trainer loop and batch
-//! sampling join them with the NeRF pipeline).
+//! Training: the optimiser, its learning-rate schedule, thread-independent gradient slots and
+//! the NeRF trainer loop.
 
 pub mod adam;
 pub mod slots;
+pub mod trainer;
 
 pub use adam::{Adam, AdamConfig, LrSchedule};

@@ -12,8 +12,9 @@
 //! in the low half), so a corner is one 4-byte gather; the optimiser keeps an fp32 master copy
 //! (see [`HashGridParams`]) and rewrites the fp16 mirror after each step.
 //!
-//! **Layout of the encoding.** `out[s · 2L + 2l + f]`: sample-major rows of `2L` floats, the
-//! input layout of the density MLP.
+//! **Layout of the encoding.** `out[s · W + 2l + f]`: sample-major rows of
+//! `W = `[`HashGrid::output_width`] floats — `2L` features padded with zeros to a multiple of
+//! 16, the input layout of the density MLP (whose SIMD tiles are 16 wide).
 //!
 //! **Forward/backward contract.** The encoding is linear in its parameters, so its forward
 //! context is just its input positions: [`HashGrid::backward_params`] recomputes corner indices
@@ -96,6 +97,7 @@ pub struct HashGrid {
     config: HashGridConfig,
     levels: Vec<LevelInfo>,
     entries: usize,
+    stride: usize,
 }
 
 impl HashGrid {
@@ -125,7 +127,8 @@ impl HashGrid {
                 info
             })
             .collect();
-        HashGrid { config, levels, entries: offset }
+        let stride = (FEATURES_PER_LEVEL * config.levels).div_ceil(16) * 16;
+        HashGrid { config, levels, entries: offset, stride }
     }
 
     /// The configuration this grid was built from.
@@ -148,13 +151,18 @@ impl HashGrid {
         FEATURES_PER_LEVEL * self.entries
     }
 
-    /// Floats per encoded sample (`2L`).
-    pub fn output_width(&self) -> usize {
+    /// Features per sample (`2L`).
+    pub fn features(&self) -> usize {
         FEATURES_PER_LEVEL * self.levels.len()
     }
 
-    /// Encodes `positions` (unit-cube coordinates) into `out` (`positions.len() × 2L`,
-    /// see the module docs for the layout). One thread; call it per batch chunk.
+    /// Floats per encoded row: `2L` padded to a multiple of 16 (padding is written as zero).
+    pub fn output_width(&self) -> usize {
+        self.stride
+    }
+
+    /// Encodes `positions` (unit-cube coordinates) into `out` (`positions.len() ×
+    /// output_width()`, see the module docs for the layout). One thread; call it per batch chunk.
     pub fn forward(&self, isa: Isa, table: &[u32], positions: &[[f32; 3]], out: &mut [f32]) {
         self.check(table.len(), positions.len(), out.len());
         let width = self.output_width();
@@ -173,6 +181,9 @@ impl HashGrid {
                     _ => scalar::forward_level(level, t, &soa, pos.len(), out, width),
                 }
             }
+            if width > self.features() {
+                out.chunks_mut(width).for_each(|row| row[self.features()..].fill(0.0));
+            }
         }
     }
 
@@ -187,7 +198,8 @@ impl HashGrid {
             .for_each(|(p, o)| self.forward(isa, table, p, o));
     }
 
-    /// dL/d(parameters) from dL/d(encoding) `d_out` (`positions.len() × 2L`), written into
+    /// dL/d(parameters) from dL/d(encoding) `d_out` (`positions.len() × output_width()`; padding
+    /// columns ignored), written into
     /// `grads` (`n_params()` floats, entry-major pairs like the table) per `mode`.
     /// Runs one level per rayon task: deterministic and free of atomics.
     pub fn backward_params(
@@ -253,7 +265,7 @@ impl HashGrid {
 
     fn check(&self, table_len: usize, n: usize, out_len: usize) {
         assert_eq!(table_len, self.entries, "hash grid: table has {table_len} entries, grid needs {}", self.entries);
-        assert_eq!(out_len, n * self.output_width(), "hash grid: encoding buffer must hold n × 2L floats");
+        assert_eq!(out_len, n * self.output_width(), "hash grid: encoding buffer must hold n × output_width() floats");
     }
 }
 

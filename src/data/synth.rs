@@ -1,0 +1,173 @@
+//! Scene synthesiser, first bricks: analytic ray tracers of (a) a closed room (procedurally
+//! textured walls, floor and ceiling) with a shaded opaque sphere, seen from cameras inside it,
+//! and (b) a tabletop — a textured square table top with the sphere on it under a plain sky —
+//! seen from cameras around and above it. No files needed; used by the crate's tests and demo. Exact z-depth ground truth per
+//! pixel. (The workspace of issue #3 — table, several objects, a glass object with Fresnel
+//! reflection and refraction, written to disk in the dataset layout — grows from this.)
+
+use crate::render::{pixel_ray, Aabb, Intrinsics, Pose, Ray};
+use crate::train::trainer::View;
+use glam::{Mat3, Vec3};
+
+/// Half-size of the room (metres): the room is `[−1, 1]³`.
+pub const ROOM: f32 = 1.0;
+/// Sphere centre and radius.
+pub const SPHERE: (Vec3, f32) = (Vec3::new(0.1, -0.05, -0.55), 0.35);
+
+/// A synthesised scene: views with colours, their z-depth ground truth, and the scene box.
+#[derive(Clone, Debug)]
+pub struct SynthScene {
+    /// Posed views.
+    pub views: Vec<View>,
+    /// z-depth (metres) per pixel of each view.
+    pub depth: Vec<Vec<f32>>,
+    /// The room's box.
+    pub aabb: Aabb,
+}
+
+/// First hit of `ray` in the room: (range t, albedo·shading).
+pub fn trace(ray: &Ray) -> (f32, [f32; 3]) {
+    let light = Vec3::new(0.3, -0.5, 1.0).normalize();
+    // Sphere.
+    let (c, r) = SPHERE;
+    let oc = ray.origin - c;
+    let b = oc.dot(ray.dir);
+    let disc = b * b - (oc.length_squared() - r * r);
+    let mut best = (f32::INFINITY, [0.0; 3]);
+    if disc > 0.0 {
+        let t = -b - disc.sqrt();
+        if t > 1e-4 {
+            let p = ray.at(t);
+            let n = (p - c) / r;
+            let band =
+                if ((n.z * 4.0).floor() as i32).rem_euclid(2) == 0 { [0.85, 0.25, 0.15] } else { [0.95, 0.8, 0.2] };
+            let shade = 0.35 + 0.65 * n.dot(light).max(0.0);
+            best = (t, band.map(|v| v * shade));
+        }
+    }
+    // Room walls (inside faces of the cube).
+    let inv = ray.dir.recip();
+    for axis in 0..3 {
+        for sign in [-1.0f32, 1.0] {
+            let t = (sign * ROOM - ray.origin[axis]) * inv[axis];
+            if t > 1e-4 && t < best.0 {
+                let p = ray.at(t);
+                let (u, v) = match axis {
+                    0 => (p.y, p.z),
+                    1 => (p.x, p.z),
+                    _ => (p.x, p.y),
+                };
+                let check = (((u * 4.0).floor() + (v * 4.0).floor()) as i32).rem_euclid(2) as f32;
+                let base = match (axis, sign > 0.0) {
+                    (2, false) => [0.55 + 0.3 * check, 0.45 + 0.25 * check, 0.3],
+                    (2, true) => [0.9, 0.9, 0.85],
+                    (0, _) => [0.2 + 0.5 * (0.5 + 0.5 * (u * 9.0).sin()), 0.5, 0.7],
+                    _ => [0.3, 0.35 + 0.4 * check, 0.25 + 0.3 * (0.5 + 0.5 * (v * 7.0).cos())],
+                };
+                best = (t, base);
+            }
+        }
+    }
+    best
+}
+
+/// Camera on a circle of radius `radius` at height `height`, looking at the sphere's centre, +Z up.
+pub fn look_at_pose(eye: Vec3, target: Vec3) -> Pose {
+    let forward = (target - eye).normalize();
+    let right = forward.cross(Vec3::Z).normalize();
+    let up = right.cross(forward);
+    Pose { rotation: Mat3::from_cols(right, up, -forward), translation: eye }
+}
+
+/// Renders `n_views` views of `size × size` pixels (horizontal FOV 60°) from cameras on a
+/// ring inside the room, at azimuths offset by `phase` (radians).
+pub fn room(size: u32, n_views: usize, phase: f32) -> SynthScene {
+    let k = Intrinsics::from_fov_x(size, size, 60f32.to_radians());
+    let mut views = Vec::with_capacity(n_views);
+    let mut depth = Vec::with_capacity(n_views);
+    for v in 0..n_views {
+        let a = phase + v as f32 / n_views as f32 * std::f32::consts::TAU;
+        let eye = Vec3::new(0.75 * a.cos(), 0.75 * a.sin(), 0.1 + 0.25 * (3.0 * a).sin());
+        let pose = look_at_pose(eye, SPHERE.0);
+        let mut rgb = Vec::with_capacity((size * size) as usize);
+        let mut z = Vec::with_capacity((size * size) as usize);
+        for j in 0..size {
+            for i in 0..size {
+                let ray = pixel_ray(&k, &pose, i, j);
+                let (t, c) = trace(&ray);
+                rgb.push(c);
+                z.push(ray.range_to_z(t));
+            }
+        }
+        views.push(View { intrinsics: k, pose, rgb });
+        depth.push(z);
+    }
+    // The box encloses the room with a margin, so the walls are inside it (marching ends at the
+    // box; a surface on its faces would have no room for density).
+    SynthScene { views, depth, aabb: Aabb { min: Vec3::splat(-1.1 * ROOM), max: Vec3::splat(1.1 * ROOM) } }
+}
+
+/// Sky colour of the tabletop scene (the compositing background `c_bg` for rays that miss).
+pub const SKY: [f32; 3] = [0.62, 0.7, 0.85];
+/// Half-size of the tabletop's square top (metres), at z = 0.
+pub const TABLE: f32 = 0.8;
+/// Sphere of the tabletop scene, resting on the table.
+pub const TABLE_SPHERE: (Vec3, f32) = (Vec3::new(0.1, -0.1, 0.3), 0.3);
+
+/// First hit of `ray` in the tabletop scene: (range t, colour), `t = ∞` with the sky colour on a miss.
+pub fn trace_tabletop(ray: &Ray) -> (f32, [f32; 3]) {
+    let light = Vec3::new(0.3, -0.5, 1.0).normalize();
+    let mut best = (f32::INFINITY, SKY);
+    let (c, r) = TABLE_SPHERE;
+    let oc = ray.origin - c;
+    let b = oc.dot(ray.dir);
+    let disc = b * b - (oc.length_squared() - r * r);
+    if disc > 0.0 {
+        let t = -b - disc.sqrt();
+        if t > 1e-4 {
+            let n = (ray.at(t) - c) / r;
+            let band =
+                if ((n.z * 4.0).floor() as i32).rem_euclid(2) == 0 { [0.85, 0.25, 0.15] } else { [0.95, 0.8, 0.2] };
+            best = (t, band.map(|v| v * (0.35 + 0.65 * n.dot(light).max(0.0))));
+        }
+    }
+    if ray.dir.z < 0.0 {
+        let t = -ray.origin.z / ray.dir.z;
+        let p = ray.at(t);
+        if t > 1e-4 && t < best.0 && p.x.abs() <= TABLE && p.y.abs() <= TABLE {
+            let check = (((p.x * 5.0).floor() + (p.y * 5.0).floor()) as i32).rem_euclid(2) as f32;
+            let grain = 0.5 + 0.5 * (p.x * 23.0 + 3.0 * (p.y * 4.0).sin()).sin();
+            best = (t, [0.45 + 0.25 * check + 0.1 * grain, 0.3 + 0.15 * check + 0.05 * grain, 0.2 + 0.1 * grain]);
+        }
+    }
+    best
+}
+
+/// Renders `n_views` tabletop views of `size × size` pixels (horizontal FOV 50°) from cameras
+/// 2.2 m from the sphere at elevations 25°–60°, azimuths offset by `phase`. Misses have
+/// depth `∞` (no ground truth there).
+pub fn tabletop(size: u32, n_views: usize, phase: f32) -> SynthScene {
+    let k = Intrinsics::from_fov_x(size, size, 50f32.to_radians());
+    let mut views = Vec::with_capacity(n_views);
+    let mut depth = Vec::with_capacity(n_views);
+    let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
+    for v in 0..n_views {
+        let a = phase + v as f32 * golden;
+        let elev = (25.0 + 35.0 * ((v as f32 * 0.618_034).fract())).to_radians();
+        let eye = TABLE_SPHERE.0 + 2.2 * Vec3::new(elev.cos() * a.cos(), elev.cos() * a.sin(), elev.sin());
+        let pose = look_at_pose(eye, TABLE_SPHERE.0);
+        let mut rgb = Vec::with_capacity((size * size) as usize);
+        let mut z = Vec::with_capacity((size * size) as usize);
+        for j in 0..size {
+            for i in 0..size {
+                let ray = pixel_ray(&k, &pose, i, j);
+                let (t, c) = trace_tabletop(&ray);
+                rgb.push(c);
+                z.push(ray.range_to_z(t));
+            }
+        }
+        views.push(View { intrinsics: k, pose, rgb });
+        depth.push(z);
+    }
+    SynthScene { views, depth, aabb: Aabb { min: Vec3::new(-1.0, -1.0, -0.25), max: Vec3::new(1.0, 1.0, 1.0) } }
+}

@@ -1,0 +1,317 @@
+//! The NeRF trainer: each step draws random rays from all training views, marches them
+//! through the occupancy grid, runs the field, composites (Eq. 2), takes the MSE (Eq. 4),
+//! back-propagates through compositing, activations, field and grid, and steps Adam. Every
+//! [`TrainConfig::occupancy_interval`] steps the occupancy grid is refreshed through the
+//! field's density-only path.
+//!
+//! Determinism: ray sampling draws from `Rng::stream(seed, step)`, marching and compositing
+//! are per ray in ray order, the field reduces in fixed slots — same seed, same bits on any
+//! thread count.
+
+use crate::field::{FieldContext, NerfConfig, NerfField, NerfGrads, NerfParams};
+use crate::mlp::Activation;
+use crate::render::{
+    composite_ray, composite_ray_backward, pixel_ray, Intrinsics, OccupancyConfig, OccupancyGrid, PackedSamples, Pose,
+    Ray,
+};
+use crate::rng::Rng;
+use crate::simd::Isa;
+use crate::train::{Adam, AdamConfig, LrSchedule};
+use crate::GradientMode;
+use glam::Vec3;
+use rayon::prelude::*;
+use std::time::Instant;
+
+/// One posed training image with linear RGB values in [0, 1], row-major from the top-left.
+#[derive(Clone, Debug)]
+pub struct View {
+    /// Camera intrinsics.
+    pub intrinsics: Intrinsics,
+    /// Camera-to-world pose.
+    pub pose: Pose,
+    /// `width × height` colours.
+    pub rgb: Vec<[f32; 3]>,
+}
+
+/// Trainer settings.
+#[derive(Clone, Debug)]
+pub struct TrainConfig {
+    /// Optimiser steps. Defaults to 2000.
+    pub steps: u32,
+    /// Rays per step. Defaults to 4096.
+    pub rays_per_step: usize,
+    /// Learning rate against step. Defaults to 1e-2, decaying ×0.33 from 60% of the steps every 15%.
+    pub schedule: LrSchedule,
+    /// Steps between occupancy-grid updates. Defaults to 16.
+    pub occupancy_interval: u32,
+    /// Occupancy grid and marching. Defaults to [`OccupancyConfig::default`].
+    pub occupancy: OccupancyConfig,
+    /// Colour behind the scene where rays leave the box (C's background term). Defaults to black.
+    pub background: [f32; 3],
+    /// Seed of initialisation and sampling. Defaults to 0.
+    pub seed: u64,
+}
+
+impl TrainConfig {
+    /// Defaults for `steps` steps (the schedule scales with it).
+    pub fn with_steps(steps: u32) -> TrainConfig {
+        TrainConfig {
+            steps,
+            rays_per_step: 4096,
+            schedule: LrSchedule {
+                base: 1e-2,
+                warmup_steps: 0,
+                decay_start: steps * 3 / 5,
+                decay_interval: (steps * 3 / 20).max(1),
+                decay_factor: 0.33,
+            },
+            occupancy_interval: 16,
+            occupancy: OccupancyConfig::default(),
+            background: [0.0; 3],
+            seed: 0,
+        }
+    }
+}
+
+impl Default for TrainConfig {
+    fn default() -> Self {
+        TrainConfig::with_steps(2000)
+    }
+}
+
+/// A trained (or training) NeRF: field, parameters and occupancy grid.
+#[derive(Clone, Debug)]
+pub struct Nerf {
+    /// Architecture.
+    pub field: NerfField,
+    /// Parameters.
+    pub params: NerfParams,
+    /// Occupancy grid over the scene box.
+    pub occupancy: OccupancyGrid,
+}
+
+/// Progress of one logged step.
+#[derive(Clone, Copy, Debug)]
+pub struct StepStats {
+    /// Step index (0-based).
+    pub step: u32,
+    /// MSE over the step's rays.
+    pub loss: f32,
+    /// Mean samples per ray.
+    pub samples_per_ray: f32,
+    /// Seconds since training began.
+    pub seconds: f64,
+    /// Fraction of occupied cells.
+    pub occupancy: f64,
+}
+
+/// Reusable buffers of one step.
+#[derive(Default)]
+struct StepBuffers {
+    rays: Vec<Ray>,
+    targets: Vec<[f32; 3]>,
+    samples: PackedSamples,
+    positions: Vec<Vec3>,
+    dirs: Vec<Vec3>,
+    raw: Vec<f32>,
+    rgb_raw: Vec<[f32; 3]>,
+    d_raw: Vec<f32>,
+    d_rgb_raw: Vec<[f32; 3]>,
+    ctx: FieldContext,
+}
+
+/// Marches `rays` into `out` (packed in ray order) and fills per-sample positions and directions.
+pub fn march_rays(
+    occ: &OccupancyGrid,
+    rays: &[Ray],
+    out: &mut PackedSamples,
+    positions: &mut Vec<Vec3>,
+    dirs: &mut Vec<Vec3>,
+) {
+    out.clear();
+    for r in rays {
+        occ.march(r.origin, r.dir, out);
+    }
+    positions.clear();
+    dirs.clear();
+    for (r, &(start, count)) in rays.iter().zip(&out.rays) {
+        for &t in &out.t[start as usize..(start + count) as usize] {
+            positions.push(r.at(t));
+            dirs.push(r.dir);
+        }
+    }
+}
+
+/// σ = trunc_exp(s) and c = sigmoid(c′) of one ray's samples.
+fn activate(raw: &[f32], rgb_raw: &[[f32; 3]]) -> (Vec<f32>, Vec<[f32; 3]>) {
+    let sigma = raw.iter().map(|&s| Activation::TruncExp.forward(s)).collect();
+    let rgb = rgb_raw.iter().map(|c| c.map(|v| Activation::Sigmoid.forward(v))).collect();
+    (sigma, rgb)
+}
+
+/// Trains a NeRF on `views` inside `aabb`; `log` receives stats every `log_every` steps (0: never).
+pub fn train_nerf(
+    isa: Isa,
+    views: &[View],
+    field_config: NerfConfig,
+    cfg: &TrainConfig,
+    log_every: u32,
+    mut log: impl FnMut(StepStats),
+) -> Nerf {
+    assert!(!views.is_empty(), "train: no training views");
+    // Denormals are ~100× slower on x86; every thread of the pool flushes them while training.
+    let modes: Vec<u64> = rayon::broadcast(|_| crate::simd::fpmode::flush_denormals());
+    let main_mode = crate::simd::fpmode::flush_denormals();
+    let field = NerfField::new(field_config);
+    let mut rng = Rng::new(cfg.seed);
+    let mut params = field.init_params(&mut rng);
+    let mut occupancy = OccupancyGrid::new(field.config().aabb, cfg.occupancy.clone());
+    let mut grads: NerfGrads = field.zero_grads();
+    let mut adam_grid = Adam::new(grads.grid.len(), AdamConfig::default());
+    let mut adam_density = Adam::new(grads.density.len(), AdamConfig { l2: 1e-6, ..Default::default() });
+    let mut adam_colour = Adam::new(grads.colour.len(), AdamConfig { l2: 1e-6, ..Default::default() });
+    let mut buf = StepBuffers::default();
+    let mut occ_ctx = FieldContext::default();
+    let start = Instant::now();
+    for step in 0..cfg.steps {
+        if step % cfg.occupancy_interval.max(1) == 0 {
+            let mut orng = Rng::stream(cfg.seed ^ 0x0CC, step as u64);
+            occupancy.update(step, &mut orng, |pts, sigma| {
+                field.density(isa, &params, pts, sigma, &mut occ_ctx);
+                sigma.iter_mut().for_each(|s| *s = Activation::TruncExp.forward(*s));
+            });
+        }
+        // 1. Rays: uniform over all pixels of all views.
+        let mut srng = Rng::stream(cfg.seed, step as u64);
+        buf.rays.clear();
+        buf.targets.clear();
+        for _ in 0..cfg.rays_per_step {
+            let v = &views[srng.below(views.len() as u64) as usize];
+            let (w, h) = (v.intrinsics.width, v.intrinsics.height);
+            let p = srng.below(w as u64 * h as u64) as u32;
+            buf.rays.push(pixel_ray(&v.intrinsics, &v.pose, p % w, p / w));
+            buf.targets.push(v.rgb[p as usize]);
+        }
+        // 2. March, 3. field forward.
+        march_rays(&occupancy, &buf.rays, &mut buf.samples, &mut buf.positions, &mut buf.dirs);
+        let n = buf.positions.len();
+        buf.raw.resize(n, 0.0);
+        buf.rgb_raw.resize(n, [0.0; 3]);
+        field.forward(isa, &params, &buf.positions, &buf.dirs, &mut buf.raw, &mut buf.rgb_raw, &mut buf.ctx);
+        // 4. Composite, loss, and back through compositing and the activations, per ray.
+        buf.d_raw.resize(n, 0.0);
+        buf.d_rgb_raw.resize(n, [0.0; 3]);
+        let scale = 2.0 / (3 * cfg.rays_per_step) as f32;
+        let (samples, raw, rgb_raw, targets) = (&buf.samples, &buf.raw, &buf.rgb_raw, &buf.targets);
+        let per_ray: Vec<(f32, Vec<f32>, Vec<[f32; 3]>)> = samples
+            .rays
+            .par_iter()
+            .zip(targets.par_iter())
+            .map(|(&(s0, cnt), target)| {
+                let r = s0 as usize..(s0 + cnt) as usize;
+                let (sigma, rgb) = activate(&raw[r.clone()], &rgb_raw[r.clone()]);
+                let c = composite_ray(&sigma, &samples.delta[r.clone()], &samples.t[r.clone()], &rgb, cfg.background);
+                let err: [f32; 3] = std::array::from_fn(|k| c.rgb[k] - target[k]);
+                let loss = err.iter().map(|e| e * e).sum::<f32>();
+                let mut d_sigma = vec![0.0; r.len()];
+                let mut d_rgb = vec![[0.0; 3]; r.len()];
+                composite_ray_backward(
+                    &sigma,
+                    &samples.delta[r.clone()],
+                    &rgb,
+                    &c,
+                    err.map(|e| e * scale),
+                    &mut d_sigma,
+                    &mut d_rgb,
+                );
+                let d_s = d_sigma
+                    .iter()
+                    .zip(&sigma)
+                    .map(|(g, &s)| g * Activation::TruncExp.derivative_from_output(s))
+                    .collect();
+                let d_c = d_rgb
+                    .iter()
+                    .zip(&rgb)
+                    .map(|(g, c)| std::array::from_fn(|k| g[k] * Activation::Sigmoid.derivative_from_output(c[k])))
+                    .collect();
+                (loss, d_s, d_c)
+            })
+            .collect();
+        let mut loss = 0.0f64;
+        for (&(s0, cnt), (l, d_s, d_c)) in buf.samples.rays.iter().zip(per_ray) {
+            loss += l as f64;
+            let r = s0 as usize..(s0 + cnt) as usize;
+            buf.d_raw[r.clone()].copy_from_slice(&d_s);
+            buf.d_rgb_raw[r].copy_from_slice(&d_c);
+        }
+        // 5. Field backward, 6. Adam.
+        field.backward(isa, &params, &mut buf.ctx, &buf.d_raw, &buf.d_rgb_raw, &mut grads, GradientMode::Overwrite);
+        let lr = cfg.schedule.lr(step);
+        let half: &mut [u16] = bytemuck::cast_slice_mut(&mut params.grid.table);
+        adam_grid.step(isa, lr, &mut params.grid.master, &grads.grid, Some(half));
+        adam_density.step(isa, lr, params.density.weights_mut(), &grads.density, None);
+        params.density.sync();
+        adam_colour.step(isa, lr, params.colour.weights_mut(), &grads.colour, None);
+        params.colour.sync();
+        if log_every > 0 && ((step + 1) % log_every == 0 || step + 1 == cfg.steps) {
+            log(StepStats {
+                step,
+                loss: (loss / (3 * cfg.rays_per_step) as f64) as f32,
+                samples_per_ray: n as f32 / cfg.rays_per_step as f32,
+                seconds: start.elapsed().as_secs_f64(),
+                occupancy: occupancy.occupancy(),
+            });
+        }
+    }
+    rayon::broadcast(|ctx| crate::simd::fpmode::restore(modes[ctx.index()]));
+    crate::simd::fpmode::restore(main_mode);
+    Nerf { field, params, occupancy }
+}
+
+/// A rendered view: colour and expected range per pixel, plus the composites' opacity.
+#[derive(Clone, Debug)]
+pub struct Rendered {
+    /// Colour per pixel.
+    pub rgb: Vec<[f32; 3]>,
+    /// Expected range `Σ w t` per pixel.
+    pub depth: Vec<f32>,
+    /// Raw densities of each pixel's samples are not kept; threshold depth per pixel (`None`:
+    /// hole) under the given threshold.
+    pub threshold_depth: Vec<Option<f32>>,
+}
+
+impl Nerf {
+    /// Renders a full view (colour, expected range, threshold range under `threshold`).
+    pub fn render(
+        &self,
+        isa: Isa,
+        k: &Intrinsics,
+        pose: &Pose,
+        background: [f32; 3],
+        threshold: crate::render::DensityThreshold,
+    ) -> Rendered {
+        let rays: Vec<Ray> = (0..k.height).flat_map(|j| (0..k.width).map(move |i| pixel_ray(k, pose, i, j))).collect();
+        let mut out = Rendered {
+            rgb: Vec::with_capacity(rays.len()),
+            depth: Vec::with_capacity(rays.len()),
+            threshold_depth: Vec::with_capacity(rays.len()),
+        };
+        let mut ctx = FieldContext::default();
+        let (mut samples, mut pos, mut dirs) = (PackedSamples::default(), Vec::new(), Vec::new());
+        for chunk in rays.chunks(4096) {
+            march_rays(&self.occupancy, chunk, &mut samples, &mut pos, &mut dirs);
+            let n = pos.len();
+            let (mut raw, mut rgb_raw) = (vec![0.0; n], vec![[0.0; 3]; n]);
+            self.field.forward(isa, &self.params, &pos, &dirs, &mut raw, &mut rgb_raw, &mut ctx);
+            for &(s0, cnt) in &samples.rays {
+                let r = s0 as usize..(s0 + cnt) as usize;
+                let (sigma, rgb) = activate(&raw[r.clone()], &rgb_raw[r.clone()]);
+                let c = composite_ray(&sigma, &samples.delta[r.clone()], &samples.t[r.clone()], &rgb, background);
+                out.rgb.push(c.rgb);
+                out.depth.push(c.depth);
+                out.threshold_depth.push(crate::render::threshold_depth(&samples.t[r.clone()], &raw[r], threshold));
+            }
+        }
+        out
+    }
+}
