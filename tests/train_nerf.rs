@@ -66,3 +66,28 @@ fn nerf_learns_a_synthesised_tabletop() {
     assert!(mae < 0.6 * mae_base, "depth not learnt");
     assert!(hole_rate < 0.05, "too many holes");
 }
+
+/// Same seed → the same trained parameters, bit for bit, on 1 and 2 threads.
+#[test]
+fn training_is_thread_count_independent() {
+    let scene = synth::tabletop(12, 6, 0.0);
+    let field = NerfConfig {
+        grid: HashGridConfig { levels: 8, log2_table_size: 12, base_resolution: 4, finest_resolution: 64 },
+        aabb: scene.aabb,
+    };
+    let mut cfg = TrainConfig::with_steps(20);
+    cfg.rays_per_step = 256;
+    cfg.background = synth::SKY;
+    cfg.occupancy =
+        OccupancyConfig { resolution: 16, steps_per_diagonal: 64, max_samples: 64, warmup_steps: 8, decay: 0.95 };
+    let run = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| train_nerf(Isa::detect(), &scene.views, field.clone(), &cfg, 0, |_| {}))
+    };
+    let (a, b) = (run(1), run(2));
+    assert!(a.params == b.params, "parameters differ between 1 and 2 threads");
+    assert!(a.occupancy.occupancy() == b.occupancy.occupancy());
+}

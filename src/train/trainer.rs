@@ -16,6 +16,7 @@ use crate::render::{
 };
 use crate::rng::Rng;
 use crate::simd::Isa;
+use crate::train::slots::{slot_range, SLOTS};
 use crate::train::{Adam, AdamConfig, LrSchedule};
 use crate::GradientMode;
 use glam::Vec3;
@@ -115,6 +116,8 @@ struct StepBuffers {
     dirs: Vec<Vec3>,
     raw: Vec<f32>,
     rgb_raw: Vec<[f32; 3]>,
+    sigma: Vec<f32>,
+    rgb: Vec<[f32; 3]>,
     d_raw: Vec<f32>,
     d_rgb_raw: Vec<[f32; 3]>,
     ctx: FieldContext,
@@ -142,11 +145,48 @@ pub fn march_rays(
     }
 }
 
-/// σ = trunc_exp(s) and c = sigmoid(c′) of one ray's samples.
-fn activate(raw: &[f32], rgb_raw: &[[f32; 3]]) -> (Vec<f32>, Vec<[f32; 3]>) {
-    let sigma = raw.iter().map(|&s| Activation::TruncExp.forward(s)).collect();
-    let rgb = rgb_raw.iter().map(|c| c.map(|v| Activation::Sigmoid.forward(v))).collect();
-    (sigma, rgb)
+/// σ = trunc_exp(s) and c = sigmoid(c′), element-wise into caller buffers.
+fn activate(raw: &[f32], rgb_raw: &[[f32; 3]], sigma: &mut [f32], rgb: &mut [[f32; 3]]) {
+    for (o, &s) in sigma.iter_mut().zip(raw) {
+        *o = Activation::TruncExp.forward(s);
+    }
+    for (o, c) in rgb.iter_mut().zip(rgb_raw) {
+        *o = c.map(|v| Activation::Sigmoid.forward(v));
+    }
+}
+
+/// A group of consecutive rays and the contiguous range of their samples.
+struct RayGroup {
+    rays: std::ops::Range<usize>,
+    samples: std::ops::Range<usize>,
+}
+
+/// Cuts the packed rays into [`SLOTS`] groups of consecutive rays (boundaries depend only on
+/// the ray count, so the work split is the same on any thread count).
+fn ray_groups(rays: &[(u32, u32)]) -> Vec<RayGroup> {
+    (0..SLOTS)
+        .map(|g| {
+            let r = slot_range(rays.len(), g);
+            let first = rays.get(r.start).map_or(0, |x| x.0 as usize);
+            let last = if r.is_empty() { first } else { (rays[r.end - 1].0 + rays[r.end - 1].1) as usize };
+            RayGroup { samples: first..last, rays: r }
+        })
+        .collect()
+}
+
+/// Disjoint mutable slices of `buf` for each group's sample range (ranges are consecutive).
+fn split_at_bounds<'a, T>(buf: &'a mut [T], groups: &[RayGroup]) -> Vec<&'a mut [T]> {
+    let mut parts = Vec::with_capacity(groups.len());
+    let mut rest = buf;
+    let mut at = 0;
+    for g in groups {
+        let (_, tail) = rest.split_at_mut(g.samples.start - at);
+        let (head, tail) = tail.split_at_mut(g.samples.len());
+        parts.push(head);
+        rest = tail;
+        at = g.samples.end;
+    }
+    parts
 }
 
 /// Trains a NeRF on `views` inside `aabb`; `log` receives stats every `log_every` steps (0: never).
@@ -198,52 +238,61 @@ pub fn train_nerf(
         buf.raw.resize(n, 0.0);
         buf.rgb_raw.resize(n, [0.0; 3]);
         field.forward(isa, &params, &buf.positions, &buf.dirs, &mut buf.raw, &mut buf.rgb_raw, &mut buf.ctx);
-        // 4. Composite, loss, and back through compositing and the activations, per ray.
+        // 4. Activate, composite, loss, and back through compositing and the activations.
+        //    Rays are processed in SLOTS fixed groups whose samples are contiguous, each group
+        //    writing its own slices of the step buffers (no per-ray allocation).
+        buf.sigma.resize(n, 0.0);
+        buf.rgb.resize(n, [0.0; 3]);
+        activate(&buf.raw, &buf.rgb_raw, &mut buf.sigma, &mut buf.rgb);
         buf.d_raw.resize(n, 0.0);
         buf.d_rgb_raw.resize(n, [0.0; 3]);
         let scale = 2.0 / (3 * cfg.rays_per_step) as f32;
-        let (samples, raw, rgb_raw, targets) = (&buf.samples, &buf.raw, &buf.rgb_raw, &buf.targets);
-        let per_ray: Vec<(f32, Vec<f32>, Vec<[f32; 3]>)> = samples
-            .rays
+        let (samples, sigma, rgb, targets) = (&buf.samples, &buf.sigma, &buf.rgb, &buf.targets);
+        let groups = ray_groups(&samples.rays);
+        let d_raw_parts = split_at_bounds(&mut buf.d_raw, &groups);
+        let d_rgb_parts = split_at_bounds(&mut buf.d_rgb_raw, &groups);
+        let losses: Vec<f64> = groups
             .par_iter()
-            .zip(targets.par_iter())
-            .map(|(&(s0, cnt), target)| {
-                let r = s0 as usize..(s0 + cnt) as usize;
-                let (sigma, rgb) = activate(&raw[r.clone()], &rgb_raw[r.clone()]);
-                let c = composite_ray(&sigma, &samples.delta[r.clone()], &samples.t[r.clone()], &rgb, cfg.background);
-                let err: [f32; 3] = std::array::from_fn(|k| c.rgb[k] - target[k]);
-                let loss = err.iter().map(|e| e * e).sum::<f32>();
-                let mut d_sigma = vec![0.0; r.len()];
-                let mut d_rgb = vec![[0.0; 3]; r.len()];
-                composite_ray_backward(
-                    &sigma,
-                    &samples.delta[r.clone()],
-                    &rgb,
-                    &c,
-                    err.map(|e| e * scale),
-                    &mut d_sigma,
-                    &mut d_rgb,
-                );
-                let d_s = d_sigma
-                    .iter()
-                    .zip(&sigma)
-                    .map(|(g, &s)| g * Activation::TruncExp.derivative_from_output(s))
-                    .collect();
-                let d_c = d_rgb
-                    .iter()
-                    .zip(&rgb)
-                    .map(|(g, c)| std::array::from_fn(|k| g[k] * Activation::Sigmoid.derivative_from_output(c[k])))
-                    .collect();
-                (loss, d_s, d_c)
+            .zip(d_raw_parts)
+            .zip(d_rgb_parts)
+            .map(|((g, d_s), d_c)| {
+                let mut loss = 0.0f64;
+                let base = g.samples.start;
+                for ray in g.rays.clone() {
+                    let (s0, cnt) = samples.rays[ray];
+                    let r = s0 as usize..(s0 + cnt) as usize;
+                    let local = r.start - base..r.end - base;
+                    let c = composite_ray(
+                        &sigma[r.clone()],
+                        &samples.delta[r.clone()],
+                        &samples.t[r.clone()],
+                        &rgb[r.clone()],
+                        cfg.background,
+                    );
+                    let err: [f32; 3] = std::array::from_fn(|k| c.rgb[k] - targets[ray][k]);
+                    loss += err.iter().map(|e| (e * e) as f64).sum::<f64>();
+                    let (ds, dc) = (&mut d_s[local.clone()], &mut d_c[local]);
+                    composite_ray_backward(
+                        &sigma[r.clone()],
+                        &samples.delta[r.clone()],
+                        &rgb[r.clone()],
+                        &c,
+                        err.map(|e| e * scale),
+                        ds,
+                        dc,
+                    );
+                    // dL/ds = dL/dσ · trunc_exp′, dL/dc′ = dL/dc · sigmoid′ (both from the outputs).
+                    for ((g, &sg), (gc, col)) in ds.iter_mut().zip(&sigma[r.clone()]).zip(dc.iter_mut().zip(&rgb[r])) {
+                        *g *= Activation::TruncExp.derivative_from_output(sg);
+                        for k in 0..3 {
+                            gc[k] *= Activation::Sigmoid.derivative_from_output(col[k]);
+                        }
+                    }
+                }
+                loss
             })
             .collect();
-        let mut loss = 0.0f64;
-        for (&(s0, cnt), (l, d_s, d_c)) in buf.samples.rays.iter().zip(per_ray) {
-            loss += l as f64;
-            let r = s0 as usize..(s0 + cnt) as usize;
-            buf.d_raw[r.clone()].copy_from_slice(&d_s);
-            buf.d_rgb_raw[r].copy_from_slice(&d_c);
-        }
+        let loss: f64 = losses.iter().sum();
         // 5. Field backward, 6. Adam.
         field.backward(isa, &params, &mut buf.ctx, &buf.d_raw, &buf.d_rgb_raw, &mut grads, GradientMode::Overwrite);
         let lr = cfg.schedule.lr(step);
@@ -303,10 +352,17 @@ impl Nerf {
             let n = pos.len();
             let (mut raw, mut rgb_raw) = (vec![0.0; n], vec![[0.0; 3]; n]);
             self.field.forward(isa, &self.params, &pos, &dirs, &mut raw, &mut rgb_raw, &mut ctx);
+            let (mut sigma, mut rgb) = (vec![0.0; n], vec![[0.0; 3]; n]);
+            activate(&raw, &rgb_raw, &mut sigma, &mut rgb);
             for &(s0, cnt) in &samples.rays {
                 let r = s0 as usize..(s0 + cnt) as usize;
-                let (sigma, rgb) = activate(&raw[r.clone()], &rgb_raw[r.clone()]);
-                let c = composite_ray(&sigma, &samples.delta[r.clone()], &samples.t[r.clone()], &rgb, background);
+                let c = composite_ray(
+                    &sigma[r.clone()],
+                    &samples.delta[r.clone()],
+                    &samples.t[r.clone()],
+                    &rgb[r.clone()],
+                    background,
+                );
                 out.rgb.push(c.rgb);
                 out.depth.push(c.depth);
                 out.threshold_depth.push(crate::render::threshold_depth(&samples.t[r.clone()], &raw[r], threshold));
