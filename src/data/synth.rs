@@ -25,26 +25,53 @@ pub struct SynthScene {
     pub aabb: Aabb,
 }
 
-/// First hit of `ray` in the room: (range t, albedo·shading).
-pub fn trace(ray: &Ray) -> (f32, [f32; 3]) {
-    let light = Vec3::new(0.3, -0.5, 1.0).normalize();
-    // Sphere.
-    let (c, r) = SPHERE;
+/// Direction towards the (distant) light of both scenes.
+fn light() -> Vec3 {
+    Vec3::new(0.3, -0.5, 1.0).normalize()
+}
+
+/// First hit of a banded, Lambert-shaded sphere: (range t, colour), `None` on a miss.
+fn hit_sphere(ray: &Ray, (c, r): (Vec3, f32)) -> Option<(f32, [f32; 3])> {
     let oc = ray.origin - c;
     let b = oc.dot(ray.dir);
     let disc = b * b - (oc.length_squared() - r * r);
-    let mut best = (f32::INFINITY, [0.0; 3]);
-    if disc > 0.0 {
-        let t = -b - disc.sqrt();
-        if t > 1e-4 {
-            let p = ray.at(t);
-            let n = (p - c) / r;
-            let band =
-                if ((n.z * 4.0).floor() as i32).rem_euclid(2) == 0 { [0.85, 0.25, 0.15] } else { [0.95, 0.8, 0.2] };
-            let shade = 0.35 + 0.65 * n.dot(light).max(0.0);
-            best = (t, band.map(|v| v * shade));
-        }
+    let t = -b - disc.max(0.0).sqrt();
+    if disc <= 0.0 || t <= 1e-4 {
+        return None;
     }
+    let n = (ray.at(t) - c) / r;
+    let band = if ((n.z * 4.0).floor() as i32).rem_euclid(2) == 0 { [0.85, 0.25, 0.15] } else { [0.95, 0.8, 0.2] };
+    let shade = 0.35 + 0.65 * n.dot(light()).max(0.0);
+    Some((t, band.map(|v| v * shade)))
+}
+
+/// Renders one view per pose with `trace` (range, colour per ray) into colours and z-depth.
+fn render_views(
+    k: &Intrinsics,
+    poses: impl Iterator<Item = Pose>,
+    trace: impl Fn(&Ray) -> (f32, [f32; 3]),
+) -> (Vec<View>, Vec<Vec<f32>>) {
+    let (mut views, mut depth) = (Vec::new(), Vec::new());
+    for pose in poses {
+        let n = (k.width * k.height) as usize;
+        let (mut rgb, mut z) = (Vec::with_capacity(n), Vec::with_capacity(n));
+        for j in 0..k.height {
+            for i in 0..k.width {
+                let ray = pixel_ray(k, &pose, i, j);
+                let (t, c) = trace(&ray);
+                rgb.push(c);
+                z.push(ray.range_to_z(t));
+            }
+        }
+        views.push(View { intrinsics: *k, pose, rgb });
+        depth.push(z);
+    }
+    (views, depth)
+}
+
+/// First hit of `ray` in the room: (range t, albedo·shading).
+pub fn trace(ray: &Ray) -> (f32, [f32; 3]) {
+    let mut best = hit_sphere(ray, SPHERE).unwrap_or((f32::INFINITY, [0.0; 3]));
     // Room walls (inside faces of the cube).
     let inv = ray.dir.recip();
     for axis in 0..3 {
@@ -83,25 +110,12 @@ pub fn look_at_pose(eye: Vec3, target: Vec3) -> Pose {
 /// ring inside the room, at azimuths offset by `phase` (radians).
 pub fn room(size: u32, n_views: usize, phase: f32) -> SynthScene {
     let k = Intrinsics::from_fov_x(size, size, 60f32.to_radians());
-    let mut views = Vec::with_capacity(n_views);
-    let mut depth = Vec::with_capacity(n_views);
-    for v in 0..n_views {
+    let poses = (0..n_views).map(|v| {
         let a = phase + v as f32 / n_views as f32 * std::f32::consts::TAU;
         let eye = Vec3::new(0.75 * a.cos(), 0.75 * a.sin(), 0.1 + 0.25 * (3.0 * a).sin());
-        let pose = look_at_pose(eye, SPHERE.0);
-        let mut rgb = Vec::with_capacity((size * size) as usize);
-        let mut z = Vec::with_capacity((size * size) as usize);
-        for j in 0..size {
-            for i in 0..size {
-                let ray = pixel_ray(&k, &pose, i, j);
-                let (t, c) = trace(&ray);
-                rgb.push(c);
-                z.push(ray.range_to_z(t));
-            }
-        }
-        views.push(View { intrinsics: k, pose, rgb });
-        depth.push(z);
-    }
+        look_at_pose(eye, SPHERE.0)
+    });
+    let (views, depth) = render_views(&k, poses, trace);
     // The box encloses the room with a margin, so the walls are inside it (marching ends at the
     // box; a surface on its faces would have no room for density).
     SynthScene { views, depth, aabb: Aabb { min: Vec3::splat(-1.1 * ROOM), max: Vec3::splat(1.1 * ROOM) } }
@@ -116,21 +130,7 @@ pub const TABLE_SPHERE: (Vec3, f32) = (Vec3::new(0.1, -0.1, 0.3), 0.3);
 
 /// First hit of `ray` in the tabletop scene: (range t, colour), `t = ∞` with the sky colour on a miss.
 pub fn trace_tabletop(ray: &Ray) -> (f32, [f32; 3]) {
-    let light = Vec3::new(0.3, -0.5, 1.0).normalize();
-    let mut best = (f32::INFINITY, SKY);
-    let (c, r) = TABLE_SPHERE;
-    let oc = ray.origin - c;
-    let b = oc.dot(ray.dir);
-    let disc = b * b - (oc.length_squared() - r * r);
-    if disc > 0.0 {
-        let t = -b - disc.sqrt();
-        if t > 1e-4 {
-            let n = (ray.at(t) - c) / r;
-            let band =
-                if ((n.z * 4.0).floor() as i32).rem_euclid(2) == 0 { [0.85, 0.25, 0.15] } else { [0.95, 0.8, 0.2] };
-            best = (t, band.map(|v| v * (0.35 + 0.65 * n.dot(light).max(0.0))));
-        }
-    }
+    let mut best = hit_sphere(ray, TABLE_SPHERE).unwrap_or((f32::INFINITY, SKY));
     if ray.dir.z < 0.0 {
         let t = -ray.origin.z / ray.dir.z;
         let p = ray.at(t);
@@ -148,26 +148,13 @@ pub fn trace_tabletop(ray: &Ray) -> (f32, [f32; 3]) {
 /// depth `∞` (no ground truth there).
 pub fn tabletop(size: u32, n_views: usize, phase: f32) -> SynthScene {
     let k = Intrinsics::from_fov_x(size, size, 50f32.to_radians());
-    let mut views = Vec::with_capacity(n_views);
-    let mut depth = Vec::with_capacity(n_views);
     let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
-    for v in 0..n_views {
+    let poses = (0..n_views).map(|v| {
         let a = phase + v as f32 * golden;
         let elev = (25.0 + 35.0 * ((v as f32 * 0.618_034).fract())).to_radians();
         let eye = TABLE_SPHERE.0 + 2.2 * Vec3::new(elev.cos() * a.cos(), elev.cos() * a.sin(), elev.sin());
-        let pose = look_at_pose(eye, TABLE_SPHERE.0);
-        let mut rgb = Vec::with_capacity((size * size) as usize);
-        let mut z = Vec::with_capacity((size * size) as usize);
-        for j in 0..size {
-            for i in 0..size {
-                let ray = pixel_ray(&k, &pose, i, j);
-                let (t, c) = trace_tabletop(&ray);
-                rgb.push(c);
-                z.push(ray.range_to_z(t));
-            }
-        }
-        views.push(View { intrinsics: k, pose, rgb });
-        depth.push(z);
-    }
+        look_at_pose(eye, TABLE_SPHERE.0)
+    });
+    let (views, depth) = render_views(&k, poses, trace_tabletop);
     SynthScene { views, depth, aabb: Aabb { min: Vec3::new(-1.0, -1.0, -0.25), max: Vec3::new(1.0, 1.0, 1.0) } }
 }
