@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{cases, grid_encode_f64, mlp_forward_f64, table_as_f64};
+use common::{cases, grid_encode_f64, mlp_forward_f64, mlp_kink_margin_f64, table_as_f64};
 use glam::Vec3;
 use proptest::prelude::*;
 use residual_nerf::encoding::{sh4, HashGridConfig, HashGridParams};
@@ -79,6 +79,17 @@ proptest! {
         let g64 = table_as_f64(&p.grid.table);
         let d64: Vec<f64> = p.density.weights().iter().map(|&v| v as f64).collect();
         let c64: Vec<f64> = p.colour.weights().iter().map(|&v| v as f64).collect();
+        // Skip cases with a hidden unit within 3e-5 of its ReLU kink (f32 rounding or the FD step
+        // could put it on either side); about one case in ten.
+        let margin = pos.iter().zip(&dir).map(|(&x, &v)| {
+            let u = field.config().aabb.to_unit(x);
+            let enc = grid_encode_f64(field.grid(), &g64, [u.x as f64, u.y as f64, u.z as f64]);
+            let dens = mlp_forward_f64(&nets.0, &d64, &enc);
+            let mut cin: Vec<f64> = sh4(v.to_array()).iter().map(|&c| c as f64).collect();
+            cin.extend_from_slice(&dens.last().unwrap()[1..16]);
+            mlp_kink_margin_f64(&nets.0, &d64, &enc).min(mlp_kink_margin_f64(&nets.1, &c64, &cin))
+        }).fold(f64::INFINITY, f64::min);
+        prop_assume!(margin > 3e-5);
         let loss = |g: &[f64], d: &[f64], c: &[f64]| -> f64 {
             pos.iter().zip(&dir).enumerate().map(|(i, (&x, &v))| {
                 let (s, col) = field_f64(&field, g, d, c, x, v, &nets);

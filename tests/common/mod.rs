@@ -81,6 +81,22 @@ pub fn mlp_forward_f64<const W: usize>(mlp: &Mlp<W>, params: &[f64], x: &[f64]) 
     acts
 }
 
+/// Smallest |pre-activation| of the hidden layers for one input row: how close the row is to
+/// a ReLU kink (where finite differences and f32-vs-f64 comparisons are not meaningful).
+pub fn mlp_kink_margin_f64<const W: usize>(mlp: &Mlp<W>, params: &[f64], x: &[f64]) -> f64 {
+    let cfg = mlp.config();
+    let last = mlp.layers().len() - 1;
+    let mut cur = x.to_vec();
+    let mut margin = f64::INFINITY;
+    for s in mlp.layers().iter().take(last) {
+        let z: Vec<f64> =
+            (0..s.o_real).map(|j| (0..s.k_real).map(|kk| cur[kk] * params[s.offset + kk * s.o + j]).sum()).collect();
+        margin = z.iter().fold(margin, |m, v| m.min(v.abs()));
+        cur = z.iter().map(|&v| act_f64(cfg.hidden_activation, v)).collect();
+    }
+    margin
+}
+
 pub fn act_f64(a: Activation, x: f64) -> f64 {
     match a {
         Activation::None => x,
