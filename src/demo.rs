@@ -9,7 +9,7 @@ use crate::encoding::{HashGrid, HashGridConfig, HashGridParams};
 use crate::mlp::{Activation, Mlp, MlpConfig, MlpContext, MlpParams, MlpWorkspace};
 use crate::rng::Rng;
 use crate::simd::Isa;
-use crate::train::slots::{reduce_in_order, slot_range, split_rows, SLOTS};
+use crate::train::slots::{accumulate_in_order, slot_range, split_rows, SLOTS};
 use crate::train::{Adam, AdamConfig, LrSchedule};
 use crate::GradientMode;
 use rayon::prelude::*;
@@ -177,11 +177,8 @@ pub fn fit_field(cfg: &FieldFitConfig, isa: Isa, mut progress: impl FnMut(String
             .collect::<Vec<f64>>()
             .iter()
             .sum();
-        let slot_grads: Vec<Vec<f32>> = slots.iter_mut().map(|s| std::mem::take(&mut s.0)).collect();
-        reduce_in_order(&slot_grads, &mut mlp_grads);
-        for (s, g) in slots.iter_mut().zip(slot_grads) {
-            s.0 = g;
-        }
+        mlp_grads.fill(0.0);
+        accumulate_in_order(slots.iter().map(|s| s.0.as_slice()), &mut mlp_grads);
         model.grid.backward_params(isa, &pos, &d_enc, &mut grid_grads, GradientMode::Overwrite);
         let lr = schedule.lr(step);
         let half: &mut [u16] = bytemuck::cast_slice_mut(&mut model.table.table);

@@ -13,7 +13,7 @@ use crate::mlp::{Activation, Mlp, MlpConfig, MlpContext, MlpParams, MlpWorkspace
 use crate::render::Aabb;
 use crate::rng::Rng;
 use crate::simd::Isa;
-use crate::train::slots::{reduce_in_order, slot_range, split_rows, SLOTS};
+use crate::train::slots::{accumulate_in_order, slot_range, split_rows, SLOTS};
 use crate::GradientMode;
 use glam::Vec3;
 use rayon::prelude::*;
@@ -68,7 +68,8 @@ struct Slot {
     colour: MlpContext,
     colour_in: Vec<f32>,
     ws: MlpWorkspace,
-    d_density_out: Vec<f32>,
+    /// Scratch: dL/d(output) of the colour, then of the density network.
+    d_out: Vec<f32>,
     d_colour_in: Vec<f32>,
     g_density: Vec<f32>,
     g_colour: Vec<f32>,
@@ -243,10 +244,10 @@ impl NerfField {
             let r = slot_range(n, s);
             let rows = r.len();
             // Colour network: dL/dc′ → weights, and dL/d(colour input) for the geometry features.
-            let mut d_col = std::mem::take(&mut slot.d_density_out);
-            d_col.clear();
-            d_col.resize(rows * co, 0.0);
-            for (b, row) in d_col.chunks_mut(co).enumerate() {
+            let d_out = &mut slot.d_out;
+            d_out.clear();
+            d_out.resize(rows * co, 0.0);
+            for (b, row) in d_out.chunks_mut(co).enumerate() {
                 row[..3].copy_from_slice(&d_rgb_raw[r.start + b]);
             }
             slot.g_colour.clear();
@@ -257,16 +258,16 @@ impl NerfField {
                 &params.colour,
                 &slot.colour_in,
                 &slot.colour,
-                &d_col,
+                d_out,
                 &mut slot.g_colour,
                 GradientMode::Overwrite,
                 Some(&mut slot.d_colour_in),
                 &mut slot.ws,
             );
             // Density network: d_out = (dL/ds, dL/d geometry features).
-            d_col.clear();
-            d_col.resize(rows * so, 0.0);
-            for (b, row) in d_col.chunks_mut(so).enumerate() {
+            d_out.clear();
+            d_out.resize(rows * so, 0.0);
+            for (b, row) in d_out.chunks_mut(so).enumerate() {
                 row[0] = d_raw[r.start + b];
                 row[1..1 + GEO_FEATURES]
                     .copy_from_slice(&slot.d_colour_in[b * ci + SH4_COEFFS..b * ci + SH4_COEFFS + GEO_FEATURES]);
@@ -278,28 +279,19 @@ impl NerfField {
                 &params.density,
                 &enc[r.start * w..r.end * w],
                 &slot.density,
-                &d_col,
+                d_out,
                 &mut slot.g_density,
                 GradientMode::Overwrite,
                 Some(d_enc),
                 &mut slot.ws,
             );
-            slot.d_density_out = d_col;
         });
-        let mut reduce = |pick: fn(&mut Slot) -> &mut Vec<f32>, out: &mut Vec<f32>| {
-            let parts: Vec<Vec<f32>> = ctx.slots.iter_mut().map(|s| std::mem::take(pick(s))).collect();
-            let mut sum = vec![0.0; out.len()];
-            reduce_in_order(&parts, &mut sum);
-            match mode {
-                GradientMode::Overwrite => *out = sum,
-                _ => out.iter_mut().zip(&sum).for_each(|(o, s)| *o += s),
-            }
-            for (slot, p) in ctx.slots.iter_mut().zip(parts) {
-                *pick(slot) = p;
-            }
-        };
-        reduce(|s| &mut s.g_colour, &mut grads.colour);
-        reduce(|s| &mut s.g_density, &mut grads.density);
+        if mode == GradientMode::Overwrite {
+            grads.colour.fill(0.0);
+            grads.density.fill(0.0);
+        }
+        accumulate_in_order(ctx.slots.iter().map(|s| s.g_colour.as_slice()), &mut grads.colour);
+        accumulate_in_order(ctx.slots.iter().map(|s| s.g_density.as_slice()), &mut grads.density);
         self.grid.backward_params(isa, &ctx.unit, &ctx.d_enc, &mut grads.grid, mode);
     }
 }

@@ -120,7 +120,12 @@ impl OccupancyGrid {
         assert!(aabb.size().min_element() > 0.0 && aabb.size().is_finite(), "occupancy: empty or infinite scene box");
         let n = (config.resolution as usize).pow(3);
         let step_size = aabb.size().length() / config.steps_per_diagonal.max(1) as f32;
-        OccupancyGrid { values: vec![f32::MAX; n], bits: vec![!0u64; n.div_ceil(64)], aabb, step_size, config }
+        let mut bits = vec![!0u64; n.div_ceil(64)];
+        if !n.is_multiple_of(64) {
+            // Only the first n bits stand for cells.
+            *bits.last_mut().unwrap() = (1u64 << (n % 64)) - 1;
+        }
+        OccupancyGrid { values: vec![f32::MAX; n], bits, aabb, step_size, config }
     }
 
     /// The scene box.
@@ -140,10 +145,8 @@ impl OccupancyGrid {
 
     /// Fraction of cells marked occupied.
     pub fn occupancy(&self) -> f64 {
-        let n = self.values.len();
         let set: u64 = self.bits.iter().map(|w| w.count_ones() as u64).sum();
-        // Bits past `n` in the last word are never set by `update` but are set by `new`.
-        set.min(n as u64) as f64 / n as f64
+        set as f64 / self.values.len() as f64
     }
 
     /// Index of the cell holding unit-cube point `u` (clamped into the grid).

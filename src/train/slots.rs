@@ -2,7 +2,7 @@
 //!
 //! A batch is cut into [`SLOTS`] contiguous parts whose boundaries depend only on the batch
 //! size. Each part accumulates its parameter gradient in its own buffer in sample order, on
-//! whatever thread rayon picks; the buffers are then summed in slot order. The floating-point
+//! whatever thread rayon picks; the buffers are then added in slot order. The floating-point
 //! operations, and so the result, are the same on 1 thread or 64.
 
 use std::ops::Range;
@@ -15,11 +15,11 @@ pub fn slot_range(n: usize, s: usize) -> Range<usize> {
     (n * s / SLOTS)..(n * (s + 1) / SLOTS)
 }
 
-/// `out = Σ_s slot_grads[s]`, summed in slot order.
-pub fn reduce_in_order(slot_grads: &[Vec<f32>], out: &mut [f32]) {
-    out.fill(0.0);
-    for g in slot_grads {
-        for (o, v) in out.iter_mut().zip(g) {
+/// `out += Σ_s parts[s]`, added part by part in slot order (so the floating-point sum is the
+/// same on any thread count). Overwrite by zeroing `out` first.
+pub fn accumulate_in_order<'a>(parts: impl IntoIterator<Item = &'a [f32]>, out: &mut [f32]) {
+    for part in parts {
+        for (o, v) in out.iter_mut().zip(part) {
             *o += v;
         }
     }

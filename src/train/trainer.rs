@@ -317,15 +317,14 @@ pub fn train_nerf(
     Nerf { field, params, occupancy }
 }
 
-/// A rendered view: colour and expected range per pixel, plus the composites' opacity.
+/// A rendered view: colour, expected range and threshold range per pixel (ranges along the unit ray).
 #[derive(Clone, Debug)]
 pub struct Rendered {
     /// Colour per pixel.
     pub rgb: Vec<[f32; 3]>,
     /// Expected range `Σ w t` per pixel.
     pub depth: Vec<f32>,
-    /// Raw densities of each pixel's samples are not kept; threshold depth per pixel (`None`:
-    /// hole) under the given threshold.
+    /// Threshold range per pixel under the given threshold (`None`: a hole).
     pub threshold_depth: Vec<Option<f32>>,
 }
 
