@@ -3,7 +3,7 @@
 //! both ports), the weight row loaded once per k and each input broadcast.
 //! Twin of [`super::scalar`]. Requires `o % 16 == 0` and `k % 4 == 0` (widths are padded to 16).
 
-use crate::simd::{CpuLevel, Isa};
+use crate::simd::safe_entry;
 use std::arch::x86_64::*;
 
 /// Rows per register tile in the main loop.
@@ -152,16 +152,6 @@ unsafe fn matmul_tn_acc_unchecked(x: &[f32], rows: usize, k: usize, dz: &[f32], 
     }
 }
 
-/// Safe entry point of [`matmul_unchecked`]: `isa` proves the CPU has AVX2, FMA and F16C.
-pub(super) fn matmul(isa: Isa, x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: &mut [f32], relu: bool) {
-    assert_eq!(isa.level(), CpuLevel::Avx2, "matmul: called with the wrong CPU level");
-    // SAFETY: an `Isa` of level Avx2 exists only when the CPU has AVX2, FMA and F16C.
-    unsafe { matmul_unchecked(x, rows, k, w, o, out, relu) }
-}
+safe_entry!(Avx2, matmul => matmul_unchecked(x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: &mut [f32], relu: bool));
 
-/// Safe entry point of [`matmul_tn_acc_unchecked`]: `isa` proves the CPU has AVX2, FMA and F16C.
-pub(super) fn matmul_tn_acc(isa: Isa, x: &[f32], rows: usize, k: usize, dz: &[f32], o: usize, dw: &mut [f32]) {
-    assert_eq!(isa.level(), CpuLevel::Avx2, "matmul_tn_acc: called with the wrong CPU level");
-    // SAFETY: an `Isa` of level Avx2 exists only when the CPU has AVX2, FMA and F16C.
-    unsafe { matmul_tn_acc_unchecked(x, rows, k, dz, o, dw) }
-}
+safe_entry!(Avx2, matmul_tn_acc => matmul_tn_acc_unchecked(x: &[f32], rows: usize, k: usize, dz: &[f32], o: usize, dw: &mut [f32]));

@@ -1,7 +1,7 @@
 //! NEON MLP kernels: register tiles of 4 rows × 16 columns (16 q-register accumulators).
 //! Twin of [`super::scalar`]. Requires `o.is_multiple_of(16)` and `k.is_multiple_of(4)`.
 
-use crate::simd::{CpuLevel, Isa};
+use crate::simd::safe_entry;
 use std::arch::aarch64::*;
 
 /// NEON twin of [`super::scalar::matmul`].
@@ -93,16 +93,6 @@ unsafe fn matmul_tn_acc_unchecked(x: &[f32], rows: usize, k: usize, dz: &[f32], 
     }
 }
 
-/// Safe entry point of [`matmul_unchecked`]: `isa` proves the CPU has NEON.
-pub(super) fn matmul(isa: Isa, x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: &mut [f32], relu: bool) {
-    assert_eq!(isa.level(), CpuLevel::Neon, "matmul: called with the wrong CPU level");
-    // SAFETY: an `Isa` of level Neon exists only when the CPU has NEON.
-    unsafe { matmul_unchecked(x, rows, k, w, o, out, relu) }
-}
+safe_entry!(Neon, matmul => matmul_unchecked(x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: &mut [f32], relu: bool));
 
-/// Safe entry point of [`matmul_tn_acc_unchecked`]: `isa` proves the CPU has NEON.
-pub(super) fn matmul_tn_acc(isa: Isa, x: &[f32], rows: usize, k: usize, dz: &[f32], o: usize, dw: &mut [f32]) {
-    assert_eq!(isa.level(), CpuLevel::Neon, "matmul_tn_acc: called with the wrong CPU level");
-    // SAFETY: an `Isa` of level Neon exists only when the CPU has NEON.
-    unsafe { matmul_tn_acc_unchecked(x, rows, k, dz, o, dw) }
-}
+safe_entry!(Neon, matmul_tn_acc => matmul_tn_acc_unchecked(x: &[f32], rows: usize, k: usize, dz: &[f32], o: usize, dw: &mut [f32]));

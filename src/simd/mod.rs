@@ -13,9 +13,12 @@
 //! level (for testing and for bisecting a numeric difference); a value above what the host
 //! has is ignored with a warning, never obeyed.
 
+pub(crate) mod entry;
 pub mod fpmode;
 #[cfg(target_arch = "aarch64")]
 pub(crate) mod neon;
+
+pub(crate) use entry::safe_entry;
 
 use std::fmt;
 use std::sync::OnceLock;

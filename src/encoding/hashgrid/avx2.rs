@@ -2,7 +2,7 @@
 //! (each lane fetches a packed fp16 pair), `vcvtph2ps` to expand. Twin of [`super::scalar`].
 
 use super::{LevelInfo, Soa, PRIME_Y, PRIME_Z};
-use crate::simd::{CpuLevel, Isa};
+use crate::simd::safe_entry;
 use std::arch::x86_64::*;
 
 /// Corner indices and weights of samples `i..i+8` (weights zeroed outside the unit cube,
@@ -149,32 +149,6 @@ unsafe fn backward_level_unchecked(
     }
 }
 
-/// Safe entry point of [`forward_level_unchecked`]: `isa` proves the CPU has AVX2, FMA and F16C.
-pub(super) fn forward_level(
-    isa: Isa,
-    level: &LevelInfo,
-    table: &[u32],
-    soa: &Soa,
-    n: usize,
-    out: &mut [f32],
-    stride: usize,
-) {
-    assert_eq!(isa.level(), CpuLevel::Avx2, "forward_level: called with the wrong CPU level");
-    // SAFETY: an `Isa` of level Avx2 exists only when the CPU has AVX2, FMA and F16C.
-    unsafe { forward_level_unchecked(level, table, soa, n, out, stride) }
-}
+safe_entry!(Avx2, forward_level => forward_level_unchecked(level: &LevelInfo, table: &[u32], soa: &Soa, n: usize, out: &mut [f32], stride: usize));
 
-/// Safe entry point of [`backward_level_unchecked`]: `isa` proves the CPU has AVX2, FMA and F16C.
-pub(super) fn backward_level(
-    isa: Isa,
-    level: &LevelInfo,
-    grads: &mut [f32],
-    soa: &Soa,
-    n: usize,
-    d: &[f32],
-    stride: usize,
-) {
-    assert_eq!(isa.level(), CpuLevel::Avx2, "backward_level: called with the wrong CPU level");
-    // SAFETY: an `Isa` of level Avx2 exists only when the CPU has AVX2, FMA and F16C.
-    unsafe { backward_level_unchecked(level, grads, soa, n, d, stride) }
-}
+safe_entry!(Avx2, backward_level => backward_level_unchecked(level: &LevelInfo, grads: &mut [f32], soa: &Soa, n: usize, d: &[f32], stride: usize));

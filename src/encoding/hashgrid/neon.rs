@@ -4,7 +4,7 @@
 
 use super::{LevelInfo, Soa, PRIME_Y, PRIME_Z};
 use crate::simd::neon::cvt_f16x4_f32x4;
-use crate::simd::{CpuLevel, Isa};
+use crate::simd::safe_entry;
 use std::arch::aarch64::*;
 
 #[inline(always)]
@@ -145,32 +145,6 @@ unsafe fn backward_level_unchecked(
     }
 }
 
-/// Safe entry point of [`forward_level_unchecked`]: `isa` proves the CPU has NEON.
-pub(super) fn forward_level(
-    isa: Isa,
-    level: &LevelInfo,
-    table: &[u32],
-    soa: &Soa,
-    n: usize,
-    out: &mut [f32],
-    stride: usize,
-) {
-    assert_eq!(isa.level(), CpuLevel::Neon, "forward_level: called with the wrong CPU level");
-    // SAFETY: an `Isa` of level Neon exists only when the CPU has NEON.
-    unsafe { forward_level_unchecked(level, table, soa, n, out, stride) }
-}
+safe_entry!(Neon, forward_level => forward_level_unchecked(level: &LevelInfo, table: &[u32], soa: &Soa, n: usize, out: &mut [f32], stride: usize));
 
-/// Safe entry point of [`backward_level_unchecked`]: `isa` proves the CPU has NEON.
-pub(super) fn backward_level(
-    isa: Isa,
-    level: &LevelInfo,
-    grads: &mut [f32],
-    soa: &Soa,
-    n: usize,
-    d: &[f32],
-    stride: usize,
-) {
-    assert_eq!(isa.level(), CpuLevel::Neon, "backward_level: called with the wrong CPU level");
-    // SAFETY: an `Isa` of level Neon exists only when the CPU has NEON.
-    unsafe { backward_level_unchecked(level, grads, soa, n, d, stride) }
-}
+safe_entry!(Neon, backward_level => backward_level_unchecked(level: &LevelInfo, grads: &mut [f32], soa: &Soa, n: usize, d: &[f32], stride: usize));

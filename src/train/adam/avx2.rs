@@ -2,7 +2,7 @@
 //! `vcvtps2ph` (round to nearest even). Twin of [`super::scalar::step`].
 
 use super::AdamStep;
-use crate::simd::{CpuLevel, Isa};
+use crate::simd::safe_entry;
 use std::arch::x86_64::*;
 
 /// AVX2 twin of [`super::scalar::step`].
@@ -54,17 +54,4 @@ unsafe fn step_unchecked(
     super::scalar::step(hp, &mut p[body..], &g[body..], &mut m[body..], &mut v[body..], mirror.map(|h| &mut h[body..]));
 }
 
-/// Safe entry point of [`step_unchecked`]: `isa` proves the CPU has AVX2, FMA and F16C.
-pub(super) fn step(
-    isa: Isa,
-    hp: AdamStep,
-    p: &mut [f32],
-    g: &[f32],
-    m: &mut [f32],
-    v: &mut [f32],
-    mirror: Option<&mut [u16]>,
-) {
-    assert_eq!(isa.level(), CpuLevel::Avx2, "step: called with the wrong CPU level");
-    // SAFETY: an `Isa` of level Avx2 exists only when the CPU has AVX2, FMA and F16C.
-    unsafe { step_unchecked(hp, p, g, m, v, mirror) }
-}
+safe_entry!(Avx2, step => step_unchecked(hp: AdamStep, p: &mut [f32], g: &[f32], m: &mut [f32], v: &mut [f32], mirror: Option<&mut [u16]>));

@@ -3,7 +3,7 @@
 
 use super::AdamStep;
 use crate::simd::neon::cvt_f32x4_f16x4;
-use crate::simd::{CpuLevel, Isa};
+use crate::simd::safe_entry;
 use std::arch::aarch64::*;
 
 /// NEON twin of [`super::scalar::step`].
@@ -52,17 +52,4 @@ unsafe fn step_unchecked(
     super::scalar::step(hp, &mut p[body..], &g[body..], &mut m[body..], &mut v[body..], mirror.map(|h| &mut h[body..]));
 }
 
-/// Safe entry point of [`step_unchecked`]: `isa` proves the CPU has NEON.
-pub(super) fn step(
-    isa: Isa,
-    hp: AdamStep,
-    p: &mut [f32],
-    g: &[f32],
-    m: &mut [f32],
-    v: &mut [f32],
-    mirror: Option<&mut [u16]>,
-) {
-    assert_eq!(isa.level(), CpuLevel::Neon, "step: called with the wrong CPU level");
-    // SAFETY: an `Isa` of level Neon exists only when the CPU has NEON.
-    unsafe { step_unchecked(hp, p, g, m, v, mirror) }
-}
+safe_entry!(Neon, step => step_unchecked(hp: AdamStep, p: &mut [f32], g: &[f32], m: &mut [f32], v: &mut [f32], mirror: Option<&mut [u16]>));
