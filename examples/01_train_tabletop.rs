@@ -5,8 +5,9 @@
 
 use residual_nerf::data::synth;
 use residual_nerf::encoding::HashGridConfig;
+use residual_nerf::eval::{self, DepthErrors};
 use residual_nerf::field::NerfConfig;
-use residual_nerf::render::{pixel_ray, DensityThreshold, OccupancyConfig};
+use residual_nerf::render::{DensityThreshold, OccupancyConfig};
 use residual_nerf::simd::Isa;
 use residual_nerf::train::trainer::{train_nerf, TrainConfig};
 
@@ -37,22 +38,14 @@ fn main() {
     });
     for (vi, (v, gt)) in test.views.iter().zip(&test.depth).enumerate() {
         let r = nerf.render(isa, &v.intrinsics, &v.pose, cfg.background, DensityThreshold::Sigma(3.0));
-        let se: f64 =
-            r.rgb.iter().zip(&v.rgb).map(|(a, b)| (0..3).map(|k| ((a[k] - b[k]) as f64).powi(2)).sum::<f64>()).sum();
-        let psnr = -10.0 * (se / (3 * r.rgb.len()) as f64).log10();
-        let (mut ae, mut n, mut holes) = (0.0f64, 0usize, 0usize);
-        for (p, z) in gt.iter().enumerate().filter(|(_, z)| z.is_finite()) {
-            let ray = pixel_ray(&v.intrinsics, &v.pose, p as u32 % size, p as u32 / size);
-            match r.threshold_depth[p] {
-                Some(t) => ae += (ray.range_to_z(t) - z).abs() as f64,
-                None => holes += 1,
-            }
-            n += 1;
-        }
+        let mut errors = DepthErrors::default();
+        errors.add_frame(&r.threshold_z, gt, size, [0, 0, size, size], None);
         println!(
-            "test view {vi}: PSNR {psnr:.2} dB, threshold-depth MAE {:.4} m over {} surface pixels, {holes} holes",
-            ae / (n - holes).max(1) as f64,
-            n
+            "test view {vi}: PSNR {:.2} dB, threshold-depth MAE {:.4} m (holes as 0) over {} surface pixels, {} holes",
+            eval::psnr(eval::mse(&r.rgb, &v.rgb)),
+            errors.mae(),
+            errors.pixels,
+            errors.holes
         );
     }
 }

@@ -4,23 +4,102 @@
 
 use std::ffi::OsString;
 use std::fmt;
+use std::path::PathBuf;
 
 /// Usage text printed by `rnerf help`.
 pub const USAGE: &str = "usage: rnerf <command> [options]
 
 commands:
-  demo  [--steps N] [--threads N] [--seed S]
-        fit the hash grid + MLP to a synthesised 3-D field and report held-out PSNR
-        (becomes the Residual-NeRF demo once the rendering pipeline lands)
-  bench [--json] [--reps N] [--log2t N] [--threads N]
-        throughput of the hot kernels on this machine (one JSON object with --json)
-  help  this text
+  train  --data DIR --out MODEL [--steps N] [--rays N] [--log2t N] [--seed S] [--threads N]
+         [--split NAME] [--csv FILE]
+         train a NeRF on DIR's transforms_<split>.json (default split: train)
+  render --model MODEL --data DIR --out DIR [--split NAME] [--depth threshold|expected]
+         [--m M | --m-raw S] [--threads N]
+         depth (EXR metres, 16-bit PNG mm, .npy metres, colourised PNG) and RGB of the split's views
+  eval   --model MODEL --data DIR [--split NAME] [--depth threshold|expected] [--m M | --m-raw S]
+         [--crop frame|full|HALF] [--limit METRES] [--json] [--threads N]
+         depth MAE / RMSE / hole rate inside the crops, and PSNR (default split: test)
+  demo   [--steps N] [--threads N] [--seed S]
+         fit the hash grid + MLP to a synthesised 3-D field and report held-out PSNR
+         (becomes the Residual-NeRF demo with issue #4)
+  bench  [--json] [--reps N] [--log2t N] [--threads N]
+         throughput of the hot kernels on this machine (one JSON object with --json)
+  help   this text
 
+threshold depth: --m M is a density sigma >= M per unit of the dataset's coordinates (per metre);
+  --m-raw S compares the raw network output s >= S (sigma = exp(s)), as the authors' code does.
 environment: RNERF_CPU_LEVEL=scalar|avx2|neon lowers the SIMD level (never raises it)";
+
+/// How depth is read off a ray.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum DepthChoice {
+    /// First sample with σ ≥ m (`--m`, per dataset unit) — Dex-NeRF.
+    Threshold(crate::render::DensityThreshold),
+    /// `Σ w t` (paper Eq. 3).
+    Expected,
+}
+
+/// Scoring crop of `rnerf eval`.
+pub use crate::eval::CropRule;
 
 /// A parsed command line.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Command {
+    /// `rnerf train`.
+    Train {
+        /// Dataset folder (`--data`).
+        data: PathBuf,
+        /// Model file to write (`--out`).
+        out: PathBuf,
+        /// Split to train on (`--split`, default `train`).
+        split: String,
+        /// Steps (`--steps`).
+        steps: Option<u32>,
+        /// Rays per step (`--rays`).
+        rays: Option<usize>,
+        /// log2 of the hash-table size (`--log2t`).
+        log2t: Option<u32>,
+        /// Seed (`--seed`).
+        seed: Option<u64>,
+        /// Worker threads (`--threads`).
+        threads: Option<usize>,
+        /// Metrics log (`--csv`).
+        csv: Option<PathBuf>,
+    },
+    /// `rnerf render`.
+    Render {
+        /// Model file (`--model`).
+        model: PathBuf,
+        /// Dataset folder (`--data`).
+        data: PathBuf,
+        /// Output folder (`--out`).
+        out: PathBuf,
+        /// Split (`--split`, default `test`).
+        split: String,
+        /// Depth method (`--depth`, `--m`, `--m-raw`).
+        depth: DepthChoice,
+        /// Worker threads (`--threads`).
+        threads: Option<usize>,
+    },
+    /// `rnerf eval`.
+    Eval {
+        /// Model file (`--model`).
+        model: PathBuf,
+        /// Dataset folder (`--data`).
+        data: PathBuf,
+        /// Split (`--split`, default `test`).
+        split: String,
+        /// Depth method (`--depth`, `--m`, `--m-raw`).
+        depth: DepthChoice,
+        /// Scoring crop (`--crop`, default the frames' own).
+        crop: CropRule,
+        /// Score only ground truth nearer than this (`--limit`, metres).
+        limit: Option<f32>,
+        /// One JSON object on stdout (`--json`).
+        json: bool,
+        /// Worker threads (`--threads`).
+        threads: Option<usize>,
+    },
     /// `rnerf demo`.
     Demo {
         /// Training steps (`--steps`).
@@ -61,6 +140,9 @@ fn err(msg: impl Into<String>) -> CliError {
     CliError(msg.into())
 }
 
+/// Default density threshold: σ ≥ 3 per dataset unit (the paper's m = 3; see DESIGN §2.4).
+pub const DEFAULT_M: f32 = 3.0;
+
 /// Parses the arguments after the program name.
 pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliError> {
     use lexopt::Arg::{Long, Short, Value};
@@ -72,41 +154,191 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
         }
         Some(other) => return Err(err(format!("expected a command before {} (try 'rnerf help')", describe(&other)))),
     };
-    match command.as_str() {
-        "help" => Ok(Command::Help),
-        "demo" => {
-            let (mut steps, mut seed, mut threads) = (None, None, None);
-            while let Some(arg) = p.next().map_err(|e| err(e.to_string()))? {
-                match arg {
-                    Long("steps") => steps = Some(positive(&mut p, "steps")?),
-                    Long("seed") => seed = Some(number(&mut p, "seed")?),
-                    Long("threads") => threads = Some(positive(&mut p, "threads")?),
-                    other => return Err(err(format!("demo: unexpected argument {}", describe(&other)))),
-                }
+    let mut f = Flags::default();
+    let allowed: &[&str] = match command.as_str() {
+        "help" => return Ok(Command::Help),
+        "train" => &["data", "out", "split", "steps", "rays", "log2t", "seed", "threads", "csv"],
+        "render" => &["model", "data", "out", "split", "depth", "m", "m-raw", "threads"],
+        "eval" => &["model", "data", "split", "depth", "m", "m-raw", "crop", "limit", "json", "threads"],
+        "demo" => &["steps", "seed", "threads"],
+        "bench" => &["json", "reps", "log2t", "threads"],
+        other => return Err(err(format!("unknown command '{other}' (try 'rnerf help')"))),
+    };
+    while let Some(arg) = p.next().map_err(|e| err(e.to_string()))? {
+        match arg {
+            Long(name) if allowed.contains(&name) => {
+                let name = name.to_string();
+                f.take(&name, &mut p)?;
             }
-            Ok(Command::Demo { steps, seed, threads })
-        }
-        "bench" => {
-            let (mut json, mut reps, mut log2t, mut threads) = (false, None, None, None);
-            while let Some(arg) = p.next().map_err(|e| err(e.to_string()))? {
-                match arg {
-                    Long("json") => json = true,
-                    Long("reps") => reps = Some(positive(&mut p, "reps")?),
-                    Long("log2t") => {
-                        let v: u32 = number(&mut p, "log2t")?;
-                        if !(4..=26).contains(&v) {
-                            return Err(err(format!("--log2t: {v} is outside 4..=26")));
-                        }
-                        log2t = Some(v);
-                    }
-                    Long("threads") => threads = Some(positive(&mut p, "threads")?),
-                    other => return Err(err(format!("bench: unexpected argument {}", describe(&other)))),
-                }
+            other => {
+                return Err(err(format!("{command}: unexpected argument {} (try 'rnerf help')", describe(&other))))
             }
-            Ok(Command::Bench { json, reps, log2t, threads })
         }
-        other => Err(err(format!("unknown command '{other}' (try 'rnerf help')"))),
     }
+    let threads = f.threads;
+    Ok(match command.as_str() {
+        "train" => Command::Train {
+            data: f.need_path("data", &command)?,
+            out: f.need_path("out", &command)?,
+            split: f.split.clone().unwrap_or_else(|| "train".into()),
+            steps: f.steps,
+            rays: f.rays,
+            log2t: f.log2t,
+            seed: f.seed,
+            threads,
+            csv: f.csv.clone(),
+        },
+        "render" => Command::Render {
+            model: f.need_path("model", &command)?,
+            data: f.need_path("data", &command)?,
+            out: f.need_path("out", &command)?,
+            split: f.split.clone().unwrap_or_else(|| "test".into()),
+            depth: f.depth()?,
+            threads,
+        },
+        "eval" => Command::Eval {
+            model: f.need_path("model", &command)?,
+            data: f.need_path("data", &command)?,
+            split: f.split.clone().unwrap_or_else(|| "test".into()),
+            depth: f.depth()?,
+            crop: f.crop.unwrap_or(CropRule::Frame),
+            limit: f.limit,
+            json: f.json,
+            threads,
+        },
+        "demo" => Command::Demo { steps: f.steps, seed: f.seed, threads },
+        _ => Command::Bench { json: f.json, reps: f.reps, log2t: f.log2t, threads },
+    })
+}
+
+/// Every flag's value, filled as the command line is read.
+#[derive(Default)]
+struct Flags {
+    data: Option<PathBuf>,
+    out: Option<PathBuf>,
+    model: Option<PathBuf>,
+    csv: Option<PathBuf>,
+    split: Option<String>,
+    steps: Option<u32>,
+    rays: Option<usize>,
+    log2t: Option<u32>,
+    seed: Option<u64>,
+    threads: Option<usize>,
+    reps: Option<usize>,
+    depth: Option<String>,
+    m: Option<f32>,
+    m_raw: Option<f32>,
+    crop: Option<CropRule>,
+    limit: Option<f32>,
+    json: bool,
+}
+
+impl Flags {
+    fn take(&mut self, name: &str, p: &mut lexopt::Parser) -> Result<(), CliError> {
+        match name {
+            "json" => self.json = true,
+            "data" => self.data = Some(path(p, name)?),
+            "out" => self.out = Some(path(p, name)?),
+            "model" => self.model = Some(path(p, name)?),
+            "csv" => self.csv = Some(path(p, name)?),
+            "split" => {
+                let s = text(p, name)?;
+                if s.is_empty() || !s.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') {
+                    return Err(err(format!("--split: '{s}' is not a split name (letters, digits, _ and -)")));
+                }
+                self.split = Some(s);
+            }
+            "steps" => self.steps = Some(positive(p, name)?),
+            "rays" => {
+                let v: usize = positive(p, name)?;
+                if v > 1 << 20 {
+                    return Err(err(format!("--rays: {v} is beyond 1048576")));
+                }
+                self.rays = Some(v);
+            }
+            "log2t" => {
+                let v: u32 = number(p, name)?;
+                if !(4..=26).contains(&v) {
+                    return Err(err(format!("--log2t: {v} is outside 4..=26")));
+                }
+                self.log2t = Some(v);
+            }
+            "seed" => self.seed = Some(number(p, name)?),
+            "threads" => self.threads = Some(positive(p, name)?),
+            "reps" => self.reps = Some(positive(p, name)?),
+            "depth" => {
+                let s = text(p, name)?;
+                if s != "threshold" && s != "expected" {
+                    return Err(err(format!("--depth: '{s}' is not 'threshold' or 'expected'")));
+                }
+                self.depth = Some(s);
+            }
+            "m" => self.m = Some(finite(p, name, 0.0, 1e9)?),
+            "m-raw" => self.m_raw = Some(finite(p, name, -1e3, 1e3)?),
+            "limit" => self.limit = Some(finite(p, name, 0.0, 1e6)?),
+            "crop" => {
+                let s = text(p, name)?;
+                self.crop = Some(match s.as_str() {
+                    "frame" => CropRule::Frame,
+                    "full" => CropRule::Full,
+                    n => match n.parse::<u32>() {
+                        Ok(h) if (1..=1 << 16).contains(&h) => CropRule::Centre(h),
+                        _ => return Err(err(format!("--crop: '{s}' is not 'frame', 'full' or a half-size in pixels"))),
+                    },
+                });
+            }
+            _ => unreachable!("flag list and take() disagree on --{name}"),
+        }
+        Ok(())
+    }
+
+    fn need_path(&self, name: &str, command: &str) -> Result<PathBuf, CliError> {
+        let v = match name {
+            "data" => &self.data,
+            "out" => &self.out,
+            _ => &self.model,
+        };
+        v.clone().ok_or_else(|| err(format!("{command}: --{name} is required (try 'rnerf help')")))
+    }
+
+    fn depth(&self) -> Result<DepthChoice, CliError> {
+        use crate::render::DensityThreshold;
+        if self.m.is_some() && self.m_raw.is_some() {
+            return Err(err("--m and --m-raw exclude each other (σ units or raw network output)"));
+        }
+        match self.depth.as_deref() {
+            Some("expected") if self.m.is_some() || self.m_raw.is_some() => {
+                Err(err("--m / --m-raw apply to --depth threshold, not expected"))
+            }
+            Some("expected") => Ok(DepthChoice::Expected),
+            _ => Ok(DepthChoice::Threshold(match self.m_raw {
+                Some(s) => DensityThreshold::Raw(s),
+                None => DensityThreshold::Sigma(self.m.unwrap_or(DEFAULT_M)),
+            })),
+        }
+    }
+}
+
+fn text(p: &mut lexopt::Parser, name: &str) -> Result<String, CliError> {
+    let raw = p.value().map_err(|e| err(format!("--{name}: {e}")))?;
+    raw.into_string().map_err(|v| err(format!("--{name}: '{}' is not valid UTF-8", v.to_string_lossy())))
+}
+
+fn path(p: &mut lexopt::Parser, name: &str) -> Result<PathBuf, CliError> {
+    let raw = p.value().map_err(|e| err(format!("--{name}: {e}")))?;
+    if raw.is_empty() {
+        return Err(err(format!("--{name}: empty path")));
+    }
+    Ok(PathBuf::from(raw))
+}
+
+/// A finite number in `(lo, hi]`.
+fn finite(p: &mut lexopt::Parser, name: &str, lo: f32, hi: f32) -> Result<f32, CliError> {
+    let v: f32 = number(p, name)?;
+    if !(v.is_finite() && v > lo && v <= hi) {
+        return Err(err(format!("--{name}: {v} is outside ({lo}, {hi}]")));
+    }
+    Ok(v)
 }
 
 fn describe(arg: &lexopt::Arg) -> String {
@@ -159,6 +391,14 @@ mod tests {
             ("bench --reps many", "--reps: 'many' is not a valid value"),
             ("demo --threads", "--threads"),
             ("demo --frobnicate", "unexpected argument '--frobnicate'"),
+            ("train --data d", "--out is required"),
+            ("train --data d --out m --m 3", "unexpected argument '--m'"),
+            ("eval --model m --data d --m 3 --m-raw 3", "exclude each other"),
+            ("eval --model m --data d --m -1", "--m: -1 is outside"),
+            ("eval --model m --data d --m nan", "--m: NaN is outside"),
+            ("eval --model m --data d --crop huge", "--crop: 'huge'"),
+            ("render --model m --data d --out o --depth median", "--depth: 'median'"),
+            ("train --data d --out m --split ../x", "--split"),
             ("trian", "unknown command 'trian'"),
             ("--json", "expected a command"),
         ] {

@@ -32,12 +32,15 @@
 //! assert!(sigma.is_finite() && sigma > 0.0);
 //! ```
 
+pub mod app;
 pub mod bench;
 pub mod cli;
 pub mod data;
 pub mod demo;
 pub mod encoding;
+pub mod eval;
 pub mod field;
+pub mod io;
 pub mod mlp;
 pub mod render;
 pub mod rng;

@@ -6,8 +6,9 @@
 
 use residual_nerf::data::synth;
 use residual_nerf::encoding::HashGridConfig;
+use residual_nerf::eval::{self, DepthErrors};
 use residual_nerf::field::NerfConfig;
-use residual_nerf::render::{pixel_ray, DensityThreshold, OccupancyConfig};
+use residual_nerf::render::{DensityThreshold, OccupancyConfig};
 use residual_nerf::simd::Isa;
 use residual_nerf::train::trainer::{train_nerf, TrainConfig};
 
@@ -32,29 +33,21 @@ fn nerf_learns_a_synthesised_tabletop() {
 
     let px: Vec<[f32; 3]> = test.views.iter().flat_map(|v| v.rgb.iter().copied()).collect();
     let mean: [f32; 3] = std::array::from_fn(|k| px.iter().map(|c| c[k]).sum::<f32>() / px.len() as f32);
-    let gt_z: Vec<f32> = test.depth.iter().flatten().copied().collect();
-    let surface: Vec<f32> = gt_z.iter().copied().filter(|z| z.is_finite()).collect();
+    let surface: Vec<f32> = test.depth.iter().flatten().copied().filter(|z| z.is_finite()).collect();
     let mean_z = surface.iter().sum::<f32>() / surface.len() as f32;
-    let (mut se, mut se_base, mut ae, mut ae_base, mut holes, mut i) = (0.0f64, 0.0f64, 0.0f64, 0.0f64, 0usize, 0);
-    for v in &test.views {
+    let (mut se, mut se_base) = (0.0f64, 0.0f64);
+    let (mut errors, mut errors_base) = (DepthErrors::default(), DepthErrors::default());
+    for (v, gt) in test.views.iter().zip(&test.depth) {
         let r = nerf.render(isa, &v.intrinsics, &v.pose, cfg.background, DensityThreshold::Sigma(3.0));
-        for (p, c) in r.rgb.iter().enumerate() {
-            se += (0..3).map(|k| ((c[k] - px[i][k]) as f64).powi(2)).sum::<f64>();
-            se_base += (0..3).map(|k| ((mean[k] - px[i][k]) as f64).powi(2)).sum::<f64>();
-            if gt_z[i].is_finite() {
-                let ray = pixel_ray(&v.intrinsics, &v.pose, p as u32 % size, p as u32 / size);
-                // Holes count with depth 0, as in the paper's protocol.
-                let z = r.threshold_depth[p].map_or(0.0, |t| ray.range_to_z(t));
-                holes += r.threshold_depth[p].is_none() as usize;
-                ae += (z - gt_z[i]).abs() as f64;
-                ae_base += (mean_z - gt_z[i]).abs() as f64;
-            }
-            i += 1;
-        }
+        se += eval::mse(&r.rgb, &v.rgb);
+        se_base += eval::mse(&vec![mean; v.rgb.len()], &v.rgb);
+        let full = [0, 0, size, size];
+        errors.add_frame(&r.threshold_z, gt, size, full, None);
+        errors_base.add_frame(&vec![mean_z; gt.len()], gt, size, full, None);
     }
-    let psnr = |se: f64| -10.0 * (se / (3 * i) as f64).log10();
-    let n = surface.len() as f64;
-    let (mae, mae_base, hole_rate) = (ae / n, ae_base / n, holes as f64 / n);
+    let views = test.views.len() as f64;
+    let psnr = |se: f64| eval::psnr(se / views);
+    let (mae, mae_base, hole_rate) = (errors.mae(), errors_base.mae(), errors.hole_rate());
     eprintln!(
         "{secs:.1} s: held-out PSNR {:.2} dB (mean-colour baseline {:.2}); threshold-depth MAE {mae:.3} m \
          (constant baseline {mae_base:.3}), holes {:.1}%",

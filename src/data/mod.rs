@@ -1,3 +1,17 @@
-//! Datasets: the scene synthesiser (and, with issue #3, the NeRF-synthetic loaders).
+//! Datasets: the NeRF-synthetic layout on disk ([`Dataset::load`]; DESIGN §3) and the scene
+//! synthesiser ([`synth`]) the crate's tests and demo use instead of files.
+//!
+//! - [`transforms`]: the json (pure parsing, every problem collected).
+//! - [`images`]: PNG/JPEG colour, mask PNGs, depth EXRs (size checked before decoding).
+//! - [`dataset`]: a split → posed [`crate::train::trainer::View`]s plus ground truth.
+//! - [`error`]: errors naming the file, frame and field.
 
+pub mod dataset;
+pub mod error;
+pub mod images;
 pub mod synth;
+pub mod transforms;
+
+pub use dataset::{aabb_from_cameras, AabbSource, Dataset, FrameInfo, LoadOptions};
+pub use error::{DataError, DataReport};
+pub use transforms::{DepthKind, FrameType};

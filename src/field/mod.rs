@@ -52,6 +52,18 @@ pub struct NerfGrads {
     pub colour: Vec<f32>,
 }
 
+/// A trained (or training) NeRF: field, parameters and the occupancy grid that says where
+/// it is worth sampling. What a model file holds.
+#[derive(Clone, Debug)]
+pub struct Nerf {
+    /// Architecture.
+    pub field: NerfField,
+    /// Parameters.
+    pub params: NerfParams,
+    /// Occupancy grid over the scene box.
+    pub occupancy: crate::render::OccupancyGrid,
+}
+
 /// The field's geometry and kernels (parameters live in [`NerfParams`]).
 #[derive(Clone, Debug)]
 pub struct NerfField {
@@ -128,6 +140,36 @@ impl NerfField {
     /// The hash grid.
     pub fn grid(&self) -> &HashGrid {
         &self.grid
+    }
+
+    /// Layers of the density network (flat-buffer views).
+    pub fn density_layers(&self) -> &[crate::mlp::LayerShape] {
+        self.density.layers()
+    }
+
+    /// Layers of the colour network (flat-buffer views).
+    pub fn colour_layers(&self) -> &[crate::mlp::LayerShape] {
+        self.colour.layers()
+    }
+
+    /// Length of the density network's flat weight buffer.
+    pub fn density_params(&self) -> usize {
+        self.density.n_params()
+    }
+
+    /// Length of the colour network's flat weight buffer.
+    pub fn colour_params(&self) -> usize {
+        self.colour.n_params()
+    }
+
+    /// Density-network parameters from a flat weight buffer.
+    pub fn density_params_from(&self, weights: Vec<f32>) -> MlpParams {
+        MlpParams::new(&self.density, weights)
+    }
+
+    /// Colour-network parameters from a flat weight buffer.
+    pub fn colour_params_from(&self, weights: Vec<f32>) -> MlpParams {
+        MlpParams::new(&self.colour, weights)
     }
 
     /// Freshly initialised parameters.

@@ -57,27 +57,68 @@ pub fn weights_from_density(sigma: &[f32], delta: &[f32], weights: &mut [f32]) -
 pub fn composite_ray(sigma: &[f32], delta: &[f32], t: &[f32], rgb: &[[f32; 3]], bg: [f32; 3]) -> RayComposite {
     let n = sigma.len();
     assert!(delta.len() == n && t.len() == n && rgb.len() == n, "composite: sample arrays differ in length");
-    let mut trans = 1.0f32;
-    let mut out = RayComposite { rgb: [0.0; 3], opacity: 0.0, depth: 0.0, transmittance: 1.0, samples_used: n };
+    let mut acc = RayAccumulator::new();
     for i in 0..n {
-        if trans < EARLY_STOP_TRANSMITTANCE {
-            out.samples_used = i;
+        if acc.is_opaque() {
             break;
         }
-        let keep = (-sigma[i] * delta[i]).exp();
-        let w = trans * (1.0 - keep);
-        for c in 0..3 {
-            out.rgb[c] += w * rgb[i][c];
+        acc.push(sigma[i], delta[i], t[i], rgb[i]);
+    }
+    acc.finish(bg)
+}
+
+/// [`composite_ray`] one sample at a time, for renderers that march a ray in segments and
+/// stop early: pushing the same samples (while not [`RayAccumulator::is_opaque`]) gives the
+/// same bits as `composite_ray`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RayAccumulator {
+    acc: RayComposite,
+}
+
+impl Default for RayAccumulator {
+    fn default() -> Self {
+        RayAccumulator::new()
+    }
+}
+
+impl RayAccumulator {
+    /// An empty ray (transmittance 1).
+    pub fn new() -> RayAccumulator {
+        RayAccumulator {
+            acc: RayComposite { rgb: [0.0; 3], opacity: 0.0, depth: 0.0, transmittance: 1.0, samples_used: 0 },
         }
-        out.opacity += w;
-        out.depth += w * t[i];
-        trans *= keep;
     }
-    for c in 0..3 {
-        out.rgb[c] += trans * bg[c];
+
+    /// Whether the transmittance fell below [`EARLY_STOP_TRANSMITTANCE`] (later samples would
+    /// be ignored).
+    #[inline]
+    pub fn is_opaque(&self) -> bool {
+        self.acc.transmittance < EARLY_STOP_TRANSMITTANCE
     }
-    out.transmittance = trans;
-    out
+
+    /// Adds the next sample (activated density and colour).
+    #[inline]
+    pub fn push(&mut self, sigma: f32, delta: f32, t: f32, rgb: [f32; 3]) {
+        let a = &mut self.acc;
+        let keep = (-sigma * delta).exp();
+        let w = a.transmittance * (1.0 - keep);
+        for c in 0..3 {
+            a.rgb[c] += w * rgb[c];
+        }
+        a.opacity += w;
+        a.depth += w * t;
+        a.transmittance *= keep;
+        a.samples_used += 1;
+    }
+
+    /// The composite with the background term `T · bg` added.
+    pub fn finish(&self, bg: [f32; 3]) -> RayComposite {
+        let mut out = self.acc;
+        for c in 0..3 {
+            out.rgb[c] += out.transmittance * bg[c];
+        }
+        out
+    }
 }
 
 /// Backward of [`composite_ray`] for a loss `L` with `d_rgb = ∂L/∂C`: writes `∂L/∂σ_i` to

@@ -1,14 +1,17 @@
-//! Rendering: cameras and rays, volume compositing along rays (DESIGN §2.2). The occupancy
-//! grid and marching join this module with issue #3; depth extraction (Eq. 3, Dex-NeRF) is here.
+//! Rendering: cameras and rays, the occupancy grid and marching (DESIGN §2.5), volume
+//! compositing along rays (§2.2), depth extraction (Eq. 3, Dex-NeRF; §2.4), and whole views
+//! into caller buffers ([`view`]).
 
 pub mod camera;
 pub mod composite;
 pub mod depth;
 pub mod occupancy;
+pub mod view;
 
 pub use camera::{pixel_ray, Intrinsics, Pose, Ray};
 pub use composite::{
-    composite_ray, composite_ray_backward, weights_from_density, RayComposite, EARLY_STOP_TRANSMITTANCE,
+    composite_ray, composite_ray_backward, weights_from_density, RayAccumulator, RayComposite, EARLY_STOP_TRANSMITTANCE,
 };
 pub use depth::{expected_depth, threshold_depth, DensityThreshold, DepthMethod};
-pub use occupancy::{Aabb, OccupancyConfig, OccupancyGrid, PackedSamples};
+pub use occupancy::{Aabb, OccupancyConfig, OccupancyGrid, PackedSamples, RaySpan};
+pub use view::{FullOutputs, RenderedView, ViewRenderer};

@@ -103,6 +103,15 @@ impl PackedSamples {
     }
 }
 
+/// Entry and exit distance of a ray through the scene box.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RaySpan {
+    /// Entry (≥ 0).
+    pub near: f32,
+    /// Exit.
+    pub far: f32,
+}
+
 /// The grid: per-cell optical thickness and the occupancy bitfield.
 #[derive(Clone, Debug)]
 pub struct OccupancyGrid {
@@ -201,6 +210,12 @@ impl OccupancyGrid {
             let decayed = if *old == f32::MAX { 0.0 } else { *old * self.config.decay };
             *old = if new.is_finite() { decayed.max(*new) } else { decayed };
         }
+        self.rebuild_bits();
+    }
+
+    /// Marks cells whose value passes the optical-thickness rule `σ·δ > min(0.01, mean)`.
+    fn rebuild_bits(&mut self) {
+        let n = self.values.len();
         let mean = self.values.iter().map(|&v| v as f64).sum::<f64>() / n as f64;
         let threshold = (0.01f64).min(mean) as f32;
         self.bits.fill(0);
@@ -211,45 +226,97 @@ impl OccupancyGrid {
         }
     }
 
+    /// The settings.
+    pub fn config(&self) -> &OccupancyConfig {
+        &self.config
+    }
+
+    /// Per-cell optical thickness `σ·δ_min` (x fastest; `f32::MAX` for cells never evaluated).
+    pub fn values(&self) -> &[f32] {
+        &self.values
+    }
+
+    /// A grid restored from saved [`OccupancyGrid::values`] (the bitfield is rebuilt by the
+    /// same rule, so it equals the saved grid's).
+    pub fn from_values(aabb: Aabb, config: OccupancyConfig, values: Vec<f32>) -> OccupancyGrid {
+        let mut g = OccupancyGrid::new(aabb, config);
+        assert_eq!(values.len(), g.values.len(), "occupancy: saved values do not match the resolution");
+        if values.iter().any(|&v| v != f32::MAX) {
+            g.values = values;
+            g.rebuild_bits();
+        }
+        g
+    }
+
     /// Marches one ray (unit `dir`), appending its samples to `out` (and its `(start, count)`).
     pub fn march(&self, origin: Vec3, dir: Vec3, out: &mut PackedSamples) {
         let start = out.t.len() as u32;
-        if let Some((near, far)) = self.aabb.intersect(origin, dir) {
-            let r = self.config.resolution as f32;
-            let dt = self.step_size;
-            let mut t = near;
-            let max = self.config.max_samples as usize;
-            let mut taken = 0;
-            while t < far && taken < max {
-                let mid = t + 0.5 * dt;
-                let u = self.aabb.to_unit(origin + mid * dir);
-                let i = self.cell_of(u);
-                if self.bits[i / 64] >> (i % 64) & 1 == 1 {
-                    out.t.push(mid);
-                    out.delta.push(dt);
-                    taken += 1;
-                    t += dt;
-                } else {
-                    // Jump to the first step of the lattice `near + k·dt` whose midpoint lies past
-                    // this empty cell (samples keep the same t whatever was skipped).
-                    let c = (u * r).floor();
-                    let d = dir / self.aabb.size() * r; // cells per unit t along each axis
-                    let next = |k: usize| {
-                        let (ck, dk, uk) = (c[k], d[k], u[k] * r);
-                        if dk > 0.0 {
-                            (ck + 1.0 - uk) / dk
-                        } else if dk < 0.0 {
-                            (ck - uk) / dk
-                        } else {
-                            f32::INFINITY
-                        }
-                    };
-                    let exit = mid + next(0).min(next(1)).min(next(2)).max(0.0);
-                    let steps = ((exit - near) / dt - 0.5).floor() + 1.0;
-                    t = (near + steps * dt).max(t + dt);
-                }
-            }
+        if let Some(span) = self.span(origin, dir) {
+            self.march_segment(
+                origin,
+                dir,
+                span,
+                span.near,
+                self.config.max_samples as usize,
+                &mut out.t,
+                &mut out.delta,
+            );
         }
         out.rays.push((start, out.t.len() as u32 - start));
+    }
+
+    /// Where a ray (unit `dir`) is inside the box; `None` when it misses.
+    pub fn span(&self, origin: Vec3, dir: Vec3) -> Option<RaySpan> {
+        self.aabb.intersect(origin, dir).map(|(near, far)| RaySpan { near, far })
+    }
+
+    /// Appends up to `max` samples of a ray from lattice point `t` (the span's `near`, or what a
+    /// previous segment returned) to `ts`/`deltas`; returns where the next segment starts
+    /// (`≥ span.far` once the ray is done). Segments concatenate to exactly [`Self::march`]'s samples.
+    #[allow(clippy::too_many_arguments)]
+    pub fn march_segment(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        span: RaySpan,
+        mut t: f32,
+        max: usize,
+        ts: &mut Vec<f32>,
+        deltas: &mut Vec<f32>,
+    ) -> f32 {
+        let r = self.config.resolution as f32;
+        let dt = self.step_size;
+        let (near, far) = (span.near, span.far);
+        let mut taken = 0;
+        while t < far && taken < max {
+            let mid = t + 0.5 * dt;
+            let u = self.aabb.to_unit(origin + mid * dir);
+            let i = self.cell_of(u);
+            if self.bits[i / 64] >> (i % 64) & 1 == 1 {
+                ts.push(mid);
+                deltas.push(dt);
+                taken += 1;
+                t += dt;
+            } else {
+                // Jump to the first step of the lattice `near + k·dt` whose midpoint lies past
+                // this empty cell (samples keep the same t whatever was skipped).
+                let c = (u * r).floor();
+                let d = dir / self.aabb.size() * r; // cells per unit t along each axis
+                let next = |k: usize| {
+                    let (ck, dk, uk) = (c[k], d[k], u[k] * r);
+                    if dk > 0.0 {
+                        (ck + 1.0 - uk) / dk
+                    } else if dk < 0.0 {
+                        (ck - uk) / dk
+                    } else {
+                        f32::INFINITY
+                    }
+                };
+                let exit = mid + next(0).min(next(1)).min(next(2)).max(0.0);
+                let steps = ((exit - near) / dt - 0.5).floor() + 1.0;
+                t = (near + steps * dt).max(t + dt);
+            }
+        }
+        t
     }
 }

@@ -8,11 +8,12 @@
 //! are per ray in ray order, the field reduces in fixed slots — same seed, same bits on any
 //! thread count.
 
-use crate::field::{FieldContext, NerfConfig, NerfField, NerfGrads, NerfParams};
+pub use crate::field::Nerf;
+use crate::field::{FieldContext, NerfConfig, NerfField, NerfGrads};
 use crate::mlp::Activation;
 use crate::render::{
     composite_ray, composite_ray_backward, pixel_ray, Intrinsics, OccupancyConfig, OccupancyGrid, PackedSamples, Pose,
-    Ray,
+    Ray, RayAccumulator,
 };
 use crate::rng::Rng;
 use crate::simd::Isa;
@@ -80,17 +81,6 @@ impl Default for TrainConfig {
     }
 }
 
-/// A trained (or training) NeRF: field, parameters and occupancy grid.
-#[derive(Clone, Debug)]
-pub struct Nerf {
-    /// Architecture.
-    pub field: NerfField,
-    /// Parameters.
-    pub params: NerfParams,
-    /// Occupancy grid over the scene box.
-    pub occupancy: OccupancyGrid,
-}
-
 /// Progress of one logged step.
 #[derive(Clone, Copy, Debug)]
 pub struct StepStats {
@@ -98,8 +88,11 @@ pub struct StepStats {
     pub step: u32,
     /// MSE over the step's rays.
     pub loss: f32,
-    /// Mean samples per ray.
+    /// Mean samples per ray that reached the field's full forward and backward.
     pub samples_per_ray: f32,
+    /// Mean samples per ray the occupancy grid let through (before dropping those behind
+    /// the opaque point).
+    pub marched_per_ray: f32,
     /// Seconds since training began.
     pub seconds: f64,
     /// Fraction of occupied cells.
@@ -111,6 +104,9 @@ pub struct StepStats {
 struct StepBuffers {
     rays: Vec<Ray>,
     targets: Vec<[f32; 3]>,
+    marched: PackedSamples,
+    marched_pos: Vec<Vec3>,
+    marched_dirs: Vec<Vec3>,
     samples: PackedSamples,
     positions: Vec<Vec3>,
     dirs: Vec<Vec3>,
@@ -142,6 +138,37 @@ pub fn march_rays(
             positions.push(r.at(t));
             dirs.push(r.dir);
         }
+    }
+}
+
+/// Copies each ray's samples of `marched` up to its opaque point — the samples
+/// [`composite_ray`] uses, given raw densities `raw` — into `out`, `positions`, `dirs`.
+fn keep_until_opaque(
+    marched: &PackedSamples,
+    marched_pos: &[Vec3],
+    marched_dirs: &[Vec3],
+    raw: &[f32],
+    out: &mut PackedSamples,
+    positions: &mut Vec<Vec3>,
+    dirs: &mut Vec<Vec3>,
+) {
+    out.clear();
+    positions.clear();
+    dirs.clear();
+    for &(s0, count) in &marched.rays {
+        let start = out.t.len() as u32;
+        let mut acc = RayAccumulator::new();
+        for i in s0 as usize..(s0 + count) as usize {
+            if acc.is_opaque() {
+                break;
+            }
+            acc.push(Activation::TruncExp.forward(raw[i]), marched.delta[i], 0.0, [0.0; 3]);
+            out.t.push(marched.t[i]);
+            out.delta.push(marched.delta[i]);
+            positions.push(marched_pos[i]);
+            dirs.push(marched_dirs[i]);
+        }
+        out.rays.push((start, out.t.len() as u32 - start));
     }
 }
 
@@ -233,7 +260,24 @@ pub fn train_nerf(
             buf.targets.push(v.rgb[p as usize]);
         }
         // 2. March, 3. field forward.
-        march_rays(&occupancy, &buf.rays, &mut buf.samples, &mut buf.positions, &mut buf.dirs);
+        march_rays(&occupancy, &buf.rays, &mut buf.marched, &mut buf.marched_pos, &mut buf.marched_dirs);
+        let marched = buf.marched.len();
+        // 2b. Drop the samples behind each ray's opaque point (T < 1e-4): a density-only pass
+        //     finds them; compositing ignores them anyway, so the result is unchanged and the
+        //     full forward/backward runs on the samples that matter (nerfacc's early stop).
+        buf.raw.resize(marched, 0.0);
+        if marched > 0 {
+            field.density(isa, &params, &buf.marched_pos, &mut buf.raw, &mut buf.ctx);
+        }
+        keep_until_opaque(
+            &buf.marched,
+            &buf.marched_pos,
+            &buf.marched_dirs,
+            &buf.raw,
+            &mut buf.samples,
+            &mut buf.positions,
+            &mut buf.dirs,
+        );
         let n = buf.positions.len();
         buf.raw.resize(n, 0.0);
         buf.rgb_raw.resize(n, [0.0; 3]);
@@ -307,6 +351,7 @@ pub fn train_nerf(
                 step,
                 loss: (loss / (3 * cfg.rays_per_step) as f64) as f32,
                 samples_per_ray: n as f32 / cfg.rays_per_step as f32,
+                marched_per_ray: marched as f32 / cfg.rays_per_step as f32,
                 seconds: start.elapsed().as_secs_f64(),
                 occupancy: occupancy.occupancy(),
             });
@@ -315,58 +360,4 @@ pub fn train_nerf(
     rayon::broadcast(|ctx| crate::simd::fpmode::restore(modes[ctx.index()]));
     crate::simd::fpmode::restore(main_mode);
     Nerf { field, params, occupancy }
-}
-
-/// A rendered view: colour, expected range and threshold range per pixel (ranges along the unit ray).
-#[derive(Clone, Debug)]
-pub struct Rendered {
-    /// Colour per pixel.
-    pub rgb: Vec<[f32; 3]>,
-    /// Expected range `Σ w t` per pixel.
-    pub depth: Vec<f32>,
-    /// Threshold range per pixel under the given threshold (`None`: a hole).
-    pub threshold_depth: Vec<Option<f32>>,
-}
-
-impl Nerf {
-    /// Renders a full view (colour, expected range, threshold range under `threshold`).
-    pub fn render(
-        &self,
-        isa: Isa,
-        k: &Intrinsics,
-        pose: &Pose,
-        background: [f32; 3],
-        threshold: crate::render::DensityThreshold,
-    ) -> Rendered {
-        let rays: Vec<Ray> = (0..k.height).flat_map(|j| (0..k.width).map(move |i| pixel_ray(k, pose, i, j))).collect();
-        let mut out = Rendered {
-            rgb: Vec::with_capacity(rays.len()),
-            depth: Vec::with_capacity(rays.len()),
-            threshold_depth: Vec::with_capacity(rays.len()),
-        };
-        let mut ctx = FieldContext::default();
-        let (mut samples, mut pos, mut dirs) = (PackedSamples::default(), Vec::new(), Vec::new());
-        for chunk in rays.chunks(4096) {
-            march_rays(&self.occupancy, chunk, &mut samples, &mut pos, &mut dirs);
-            let n = pos.len();
-            let (mut raw, mut rgb_raw) = (vec![0.0; n], vec![[0.0; 3]; n]);
-            self.field.forward(isa, &self.params, &pos, &dirs, &mut raw, &mut rgb_raw, &mut ctx);
-            let (mut sigma, mut rgb) = (vec![0.0; n], vec![[0.0; 3]; n]);
-            activate(&raw, &rgb_raw, &mut sigma, &mut rgb);
-            for &(s0, cnt) in &samples.rays {
-                let r = s0 as usize..(s0 + cnt) as usize;
-                let c = composite_ray(
-                    &sigma[r.clone()],
-                    &samples.delta[r.clone()],
-                    &samples.t[r.clone()],
-                    &rgb[r.clone()],
-                    background,
-                );
-                out.rgb.push(c.rgb);
-                out.depth.push(c.depth);
-                out.threshold_depth.push(crate::render::threshold_depth(&samples.t[r.clone()], &raw[r], threshold));
-            }
-        }
-        out
-    }
 }

@@ -1,0 +1,120 @@
+//! `rnerf eval`: a model against a split's images and ground-truth depth (DESIGN §2.6).
+
+use super::Progress;
+use crate::cli::DepthChoice;
+use crate::data::{Dataset, LoadOptions};
+use crate::eval::{crop_box, mse, psnr, CropRule, DepthErrors};
+use crate::field::Nerf;
+use crate::io::load_nerf;
+use crate::render::{FullOutputs, ViewRenderer};
+use crate::simd::Isa;
+use serde_json::json;
+use std::path::Path;
+
+/// Metrics of one model on one split.
+#[derive(Clone, Debug)]
+pub struct EvalReport {
+    /// Depth errors over all scored pixels (z-depth, metres).
+    pub depth: DepthErrors,
+    /// Mean per-image PSNR (dB).
+    pub psnr: f64,
+    /// Frames evaluated.
+    pub frames: usize,
+    /// Frames that had ground-truth depth.
+    pub frames_with_depth: usize,
+}
+
+impl EvalReport {
+    /// The `--json` object.
+    pub fn to_json(&self, depth: DepthChoice) -> serde_json::Value {
+        let num = |x: f64| if x.is_finite() { json!(x) } else { json!(null) };
+        let method = match depth {
+            DepthChoice::Expected => "expected".to_string(),
+            DepthChoice::Threshold(crate::render::DensityThreshold::Sigma(m)) => format!("threshold sigma>={m}"),
+            DepthChoice::Threshold(crate::render::DensityThreshold::Raw(s)) => format!("threshold raw>={s}"),
+        };
+        json!({
+            "mae": num(self.depth.mae()), "rmse": num(self.depth.rmse()), "hole_rate": num(self.depth.hole_rate()),
+            "psnr": num(self.psnr), "frames": self.frames, "frames_with_depth": self.frames_with_depth,
+            "pixels": self.depth.pixels, "holes": self.depth.holes, "depth_kind": "z", "depth_unit": "m",
+            "depth_method": method,
+        })
+    }
+}
+
+/// Renders every view of `data` and scores it.
+pub fn evaluate(
+    isa: Isa,
+    nerf: &Nerf,
+    data: &Dataset,
+    depth: DepthChoice,
+    crop: CropRule,
+    limit: Option<f32>,
+    background: [f32; 3],
+    mut progress: impl FnMut(usize),
+) -> EvalReport {
+    let m = match depth {
+        DepthChoice::Threshold(m) => m,
+        DepthChoice::Expected => crate::render::DensityThreshold::Sigma(crate::cli::DEFAULT_M),
+    };
+    let mut renderer = ViewRenderer::new();
+    let mut errors = DepthErrors::default();
+    let (mut psnr_sum, mut with_depth) = (0.0, 0);
+    let (mut rgb, mut expected, mut threshold) = (Vec::new(), Vec::new(), Vec::new());
+    for (i, (v, f)) in data.views.iter().zip(&data.frames).enumerate() {
+        let k = &v.intrinsics;
+        let n = (k.width * k.height) as usize;
+        rgb.resize(n, [0.0; 3]);
+        expected.resize(n, 0.0);
+        threshold.resize(n, 0.0);
+        let out = FullOutputs { rgb: &mut rgb, expected_z: &mut expected, threshold_z: &mut threshold };
+        renderer.full(isa, nerf, k, &v.pose, background, m, out);
+        psnr_sum += psnr(mse(&rgb, &v.rgb));
+        if let Some(gt) = &f.depth {
+            let pred = if depth == DepthChoice::Expected { &expected } else { &threshold };
+            errors.add_frame(pred, gt, k.width, crop_box(crop, k.width, k.height, f.crop), limit);
+            with_depth += 1;
+        }
+        progress(i + 1);
+    }
+    EvalReport {
+        depth: errors,
+        psnr: psnr_sum / data.views.len() as f64,
+        frames: data.views.len(),
+        frames_with_depth: with_depth,
+    }
+}
+
+pub(super) fn run(
+    model: &Path,
+    data_dir: &Path,
+    split: &str,
+    depth: DepthChoice,
+    crop: CropRule,
+    limit: Option<f32>,
+    json: bool,
+) -> Result<(), String> {
+    let nerf = load_nerf(model)?;
+    let opts = LoadOptions::default();
+    let data = Dataset::load(data_dir, split, &opts).map_err(|e| e.to_string())?;
+    let mut progress = Progress::new("eval", data.views.len() as u64);
+    let report = evaluate(Isa::detect(), &nerf, &data, depth, crop, limit, opts.background, |i| {
+        progress.update(i as u64, "views rendered")
+    });
+    if json {
+        println!("{}", report.to_json(depth));
+    } else {
+        let d = &report.depth;
+        println!(
+            "{} frames ({} with depth), {} scored pixels: depth MAE {:.4} m  RMSE {:.4} m  holes {:.2}%  PSNR {:.2} dB",
+            report.frames,
+            report.frames_with_depth,
+            d.pixels,
+            d.mae(),
+            d.rmse(),
+            100.0 * d.hole_rate(),
+            report.psnr
+        );
+    }
+    Ok(())
+}

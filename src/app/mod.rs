@@ -1,0 +1,87 @@
+//! What each `rnerf` command does (DESIGN §4): the binary parses with [`crate::cli`] and calls
+//! [`run`]. Every error is one line naming the file, frame and field; nothing is written until
+//! the inputs have been read and checked, and every file is written atomically.
+
+mod eval;
+mod progress;
+mod render;
+mod train;
+
+pub use eval::{evaluate, EvalReport};
+pub use progress::Progress;
+pub use train::{default_train_config, TRAIN_STEPS};
+
+use crate::bench::{self, BenchOptions};
+use crate::cli::Command;
+use crate::demo::{fit_field, FieldFitConfig};
+use crate::simd::Isa;
+
+/// Runs a parsed command.
+pub fn run(command: Command) -> Result<(), String> {
+    match command {
+        Command::Help => println!("{}", crate::cli::USAGE),
+        Command::Train { data, out, split, steps, rays, log2t, seed, threads, csv } => {
+            set_threads(threads)?;
+            train::run(&train::TrainArgs { data, out, split, steps, rays, log2t, seed, csv })?;
+        }
+        Command::Render { model, data, out, split, depth, threads } => {
+            set_threads(threads)?;
+            render::run(&model, &data, &split, depth, &out)?;
+        }
+        Command::Eval { model, data, split, depth, crop, limit, json, threads } => {
+            set_threads(threads)?;
+            eval::run(&model, &data, &split, depth, crop, limit, json)?;
+        }
+        Command::Bench { json, reps, log2t, threads } => {
+            set_threads(threads)?;
+            let defaults = BenchOptions::default();
+            let opts = BenchOptions {
+                reps: reps.unwrap_or(defaults.reps),
+                log2_table_size: log2t.unwrap_or(defaults.log2_table_size),
+                ..defaults
+            };
+            let report = bench::run(&opts);
+            if json {
+                println!("{}", report.to_json());
+            } else {
+                print!("{}", report.to_table());
+            }
+        }
+        Command::Demo { steps, seed, threads } => {
+            set_threads(threads)?;
+            let defaults = FieldFitConfig::default();
+            let cfg = FieldFitConfig {
+                steps: steps.unwrap_or(defaults.steps),
+                seed: seed.unwrap_or(defaults.seed),
+                ..defaults
+            };
+            eprintln!("rnerf demo: fitting a synthesised 3-D field ({} steps, cpu level {})", cfg.steps, Isa::detect());
+            let report = fit_field(&cfg, Isa::detect(), |line| eprintln!("{line}"));
+            println!("{report}");
+        }
+    }
+    Ok(())
+}
+
+/// Sizes the global rayon pool (all cores when `None`).
+fn set_threads(threads: Option<usize>) -> Result<(), String> {
+    if let Some(n) = threads {
+        rayon::ThreadPoolBuilder::new().num_threads(n).build_global().map_err(|e| format!("--threads: {e}"))?;
+    }
+    Ok(())
+}
+
+/// Checks that `path`'s directory exists (before any work whose result would go there).
+fn check_output_file(path: &std::path::Path, flag: &str) -> Result<(), String> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => std::path::Path::new("."),
+    };
+    if !dir.is_dir() {
+        return Err(format!("{}: {flag}: directory {} does not exist", path.display(), dir.display()));
+    }
+    if path.is_dir() {
+        return Err(format!("{}: {flag}: is a directory, expected a file path", path.display()));
+    }
+    Ok(())
+}

@@ -1,0 +1,285 @@
+//! Model files: safetensors (readable from PyTorch / numpy with `safetensors.torch.load_file`)
+//! with the architecture, scene box and format version as JSON in the header's metadata.
+//!
+//! Tensors of a NeRF under prefix `P` (empty for a plain model):
+//! - `P grid.params` f32 `[entries, 2]`: the hash-grid fp32 master (the fp16 mirror is derived);
+//! - `P density.{l}.weight`, `P colour.{l}.weight` f32 `[out, in]` per layer (PyTorch
+//!   `nn.Linear` layout, no padding, no bias);
+//! - `P occupancy.values` f32 `[res, res, res]` (z, y, x): per-cell optical thickness.
+//!
+//! Metadata: `format` = [`FORMAT`], `format_version` = [`FORMAT_VERSION`], `kind`, and
+//! `P config`: `{"grid": {...}, "aabb": [[..],[..]], "occupancy": {...}}`; any extra keys the
+//! writer adds (training settings) are informational.
+//!
+//! Writes are atomic ([`super::write_atomic`]) and refuse non-finite weights; loading refuses
+//! a truncated file, another format or version, shapes that do not match the config, and
+//! non-finite weights — each with one line naming the file and the tensor or key.
+
+use super::atomic::write_atomic;
+use crate::encoding::{HashGridConfig, HashGridParams};
+use crate::field::{NerfConfig, NerfField, NerfParams};
+use crate::mlp::LayerShape;
+use crate::render::{Aabb, OccupancyConfig, OccupancyGrid};
+use crate::train::trainer::Nerf;
+use glam::Vec3;
+use safetensors::tensor::{Dtype, SafeTensors, TensorView};
+use serde_json::{json, Value};
+use std::collections::HashMap;
+use std::path::Path;
+
+/// `format` metadata value of every model file.
+pub const FORMAT: &str = "residual-nerf-model";
+/// Version of the layout above; files of another version are refused.
+pub const FORMAT_VERSION: u32 = 1;
+/// Largest model file read (bytes).
+pub const MAX_MODEL_BYTES: u64 = 4 << 30;
+
+/// Tensors and metadata of a model file, assembled before serialising.
+#[derive(Default)]
+pub struct ModelWriter {
+    tensors: Vec<(String, Vec<usize>, Vec<u8>)>,
+    metadata: HashMap<String, String>,
+}
+
+impl ModelWriter {
+    /// A file of `kind` (`"nerf"`, `"residual"`).
+    pub fn new(kind: &str) -> ModelWriter {
+        let mut w = ModelWriter::default();
+        w.meta("format", FORMAT);
+        w.meta("format_version", &FORMAT_VERSION.to_string());
+        w.meta("kind", kind);
+        w
+    }
+
+    /// Sets a metadata key.
+    pub fn meta(&mut self, key: &str, value: &str) {
+        self.metadata.insert(key.to_string(), value.to_string());
+    }
+
+    /// Adds an f32 tensor, refusing non-finite values.
+    pub fn tensor(&mut self, name: &str, shape: Vec<usize>, data: &[f32]) -> Result<(), String> {
+        assert_eq!(shape.iter().product::<usize>(), data.len(), "model: tensor {name} shape mismatch");
+        if let Some(i) = data.iter().position(|v| !v.is_finite()) {
+            return Err(format!("tensor '{name}' holds a non-finite value at {i} ({}); refusing to save", data[i]));
+        }
+        self.tensors.push((name.to_string(), shape, bytemuck::cast_slice(data).to_vec()));
+        Ok(())
+    }
+
+    /// Adds a NeRF's tensors and config under `prefix`.
+    pub fn nerf(&mut self, prefix: &str, nerf: &Nerf) -> Result<(), String> {
+        let cfg = nerf.field.config();
+        self.meta(&format!("{prefix}config"), &config_json(cfg, nerf.occupancy.config()).to_string());
+        let entries = nerf.params.grid.master.len() / 2;
+        self.tensor(&format!("{prefix}grid.params"), vec![entries, 2], &nerf.params.grid.master)?;
+        for (name, params, layers) in [
+            ("density", &nerf.params.density, nerf.field.density_layers()),
+            ("colour", &nerf.params.colour, nerf.field.colour_layers()),
+        ] {
+            for (l, s) in layers.iter().enumerate() {
+                let w = params.weights();
+                let t: Vec<f32> =
+                    (0..s.o_real).flat_map(|j| (0..s.k_real).map(move |k| w[s.offset + k * s.o + j])).collect();
+                self.tensor(&format!("{prefix}{name}.{l}.weight"), vec![s.o_real, s.k_real], &t)?;
+            }
+        }
+        let r = nerf.occupancy.config().resolution as usize;
+        self.tensor(&format!("{prefix}occupancy.values"), vec![r, r, r], nerf.occupancy.values())?;
+        Ok(())
+    }
+
+    /// The file's bytes.
+    pub fn to_bytes(&self) -> Result<Vec<u8>, String> {
+        let views: Vec<(String, TensorView<'_>)> = self
+            .tensors
+            .iter()
+            .map(|(n, s, d)| (n.clone(), TensorView::new(Dtype::F32, s.clone(), d).expect("shape checked on insert")))
+            .collect();
+        safetensors::serialize(views, Some(self.metadata.clone())).map_err(|e| format!("cannot serialise: {e}"))
+    }
+
+    /// Writes the file atomically.
+    pub fn write(&self, path: &Path) -> Result<(), String> {
+        let bytes = self.to_bytes().map_err(|e| format!("{}: {e}", path.display()))?;
+        write_atomic(path, &bytes)
+    }
+}
+
+fn config_json(cfg: &NerfConfig, occ: &OccupancyConfig) -> Value {
+    let g = &cfg.grid;
+    json!({
+        "grid": {
+            "levels": g.levels, "log2_table_size": g.log2_table_size,
+            "base_resolution": g.base_resolution, "finest_resolution": g.finest_resolution,
+        },
+        "aabb": [cfg.aabb.min.to_array(), cfg.aabb.max.to_array()],
+        "occupancy": {
+            "resolution": occ.resolution, "steps_per_diagonal": occ.steps_per_diagonal,
+            "max_samples": occ.max_samples, "warmup_steps": occ.warmup_steps, "decay": occ.decay,
+        },
+    })
+}
+
+/// A parsed model file: its metadata and tensors (borrowing the bytes).
+pub struct ModelReader<'a> {
+    st: SafeTensors<'a>,
+    metadata: HashMap<String, String>,
+}
+
+impl<'a> ModelReader<'a> {
+    /// Parses and checks the header: format and version.
+    pub fn parse(bytes: &'a [u8]) -> Result<ModelReader<'a>, String> {
+        if bytes.len() < 8 {
+            return Err(format!("not a model file: {} bytes (truncated or empty)", bytes.len()));
+        }
+        let (_, meta) = SafeTensors::read_metadata(bytes)
+            .map_err(|e| format!("not a model file, or truncated (safetensors: {e})"))?;
+        let metadata = meta.metadata().clone().unwrap_or_default();
+        match metadata.get("format").map(String::as_str) {
+            Some(FORMAT) => {}
+            Some(other) => return Err(format!("not a residual-nerf model (format '{other}')")),
+            None => return Err("not a residual-nerf model (no 'format' in the metadata)".into()),
+        }
+        let version = metadata.get("format_version").map(String::as_str).unwrap_or("?");
+        if version != FORMAT_VERSION.to_string() {
+            return Err(format!("format version {version}, this build reads version {FORMAT_VERSION}"));
+        }
+        let st = SafeTensors::deserialize(bytes).map_err(|e| format!("corrupt model file (safetensors: {e})"))?;
+        Ok(ModelReader { st, metadata })
+    }
+
+    /// A metadata value.
+    pub fn meta(&self, key: &str) -> Result<&str, String> {
+        self.metadata.get(key).map(String::as_str).ok_or_else(|| format!("metadata key '{key}' missing"))
+    }
+
+    /// An f32 tensor of exactly `shape`, all finite.
+    pub fn tensor(&self, name: &str, shape: &[usize]) -> Result<Vec<f32>, String> {
+        let t = self.st.tensor(name).map_err(|_| format!("tensor '{name}' missing"))?;
+        if t.dtype() != Dtype::F32 {
+            return Err(format!("tensor '{name}' is {:?}, expected F32", t.dtype()));
+        }
+        if t.shape() != shape {
+            return Err(format!("tensor '{name}' has shape {:?}, the config needs {shape:?}", t.shape()));
+        }
+        let v: Vec<f32> = t.data().chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+        if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+            return Err(format!("tensor '{name}' holds a non-finite value at {i}"));
+        }
+        Ok(v)
+    }
+
+    /// The NeRF stored under `prefix`.
+    pub fn nerf(&self, prefix: &str) -> Result<Nerf, String> {
+        let key = format!("{prefix}config");
+        let cfg: Value =
+            serde_json::from_str(self.meta(&key)?).map_err(|e| format!("metadata '{key}' is not JSON: {e}"))?;
+        let (config, occ) = parse_config(&cfg).map_err(|e| format!("metadata '{key}': {e}"))?;
+        let field = NerfField::new(config.clone());
+        let entries = field.grid().entries();
+        let master = self.tensor(&format!("{prefix}grid.params"), &[entries, 2])?;
+        let mlp = |name: &str, layers: &[LayerShape], n: usize| -> Result<Vec<f32>, String> {
+            let mut flat = vec![0.0; n];
+            for (l, s) in layers.iter().enumerate() {
+                let t = self.tensor(&format!("{prefix}{name}.{l}.weight"), &[s.o_real, s.k_real])?;
+                for j in 0..s.o_real {
+                    for k in 0..s.k_real {
+                        flat[s.offset + k * s.o + j] = t[j * s.k_real + k];
+                    }
+                }
+            }
+            Ok(flat)
+        };
+        let density = mlp("density", field.density_layers(), field.density_params())?;
+        let colour = mlp("colour", field.colour_layers(), field.colour_params())?;
+        let r = occ.resolution as usize;
+        let values = self.tensor(&format!("{prefix}occupancy.values"), &[r, r, r])?;
+        if let Some(i) = values.iter().position(|&v| v < 0.0) {
+            return Err(format!("tensor '{prefix}occupancy.values' holds a negative value at {i}"));
+        }
+        let params = NerfParams {
+            grid: HashGridParams::from_master(master),
+            density: field.density_params_from(density),
+            colour: field.colour_params_from(colour),
+        };
+        let occupancy = OccupancyGrid::from_values(config.aabb, occ, values);
+        Ok(Nerf { field, params, occupancy })
+    }
+}
+
+fn parse_config(v: &Value) -> Result<(NerfConfig, OccupancyConfig), String> {
+    let int = |v: &Value, key: &str, lo: u64, hi: u64| -> Result<u64, String> {
+        match v.get(key).and_then(Value::as_u64) {
+            Some(x) if (lo..=hi).contains(&x) => Ok(x),
+            Some(x) => Err(format!("'{key}' = {x} is outside {lo}..={hi}")),
+            None => Err(format!("'{key}' missing or not an integer")),
+        }
+    };
+    let g = v.get("grid").ok_or("'grid' missing")?;
+    let base = int(g, "base_resolution", 1, 1 << 20)? as u32;
+    let grid = HashGridConfig {
+        levels: int(g, "levels", 1, 32)? as usize,
+        log2_table_size: int(g, "log2_table_size", 4, 26)? as u32,
+        base_resolution: base,
+        finest_resolution: int(g, "finest_resolution", base as u64, 1 << 20)? as u32,
+    };
+    let corner = |c: Option<&Value>| -> Option<Vec3> {
+        let a = c?.as_array().filter(|a| a.len() == 3)?;
+        let x: Vec<f32> = a.iter().map(|x| x.as_f64().map(|x| x as f32)).collect::<Option<_>>()?;
+        Some(Vec3::new(x[0], x[1], x[2]))
+    };
+    let aabb = v.get("aabb").and_then(|a| Some(Aabb { min: corner(a.get(0))?, max: corner(a.get(1))? }));
+    let aabb = aabb
+        .filter(|b| {
+            b.min.cmplt(b.max).all() && b.size().is_finite() && b.max.abs().max(b.min.abs()).max_element() < 1e6
+        })
+        .ok_or("'aabb' missing, empty or absurd")?;
+    let o = v.get("occupancy").ok_or("'occupancy' missing")?;
+    let decay =
+        o.get("decay").and_then(Value::as_f64).filter(|d| (0.0..=1.0).contains(d)).ok_or("'decay' not in [0, 1]")?;
+    let occ = OccupancyConfig {
+        resolution: int(o, "resolution", 1, 512)? as u32,
+        steps_per_diagonal: int(o, "steps_per_diagonal", 1, 1 << 16)? as u32,
+        max_samples: int(o, "max_samples", 1, 1 << 16)? as u32,
+        warmup_steps: int(o, "warmup_steps", 0, u32::MAX as u64)? as u32,
+        decay: decay as f32,
+    };
+    Ok((NerfConfig { grid, aabb }, occ))
+}
+
+/// Reads a whole model file (size-limited), errors naming the file.
+pub fn read_model_bytes(path: &Path) -> Result<Vec<u8>, String> {
+    let meta = std::fs::metadata(path).map_err(|e| format!("{}: cannot open model: {e}", path.display()))?;
+    if !meta.is_file() {
+        return Err(format!("{}: not a file", path.display()));
+    }
+    if meta.len() > MAX_MODEL_BYTES {
+        return Err(format!("{}: {} bytes, beyond the model size limit", path.display(), meta.len()));
+    }
+    std::fs::read(path).map_err(|e| format!("{}: cannot read model: {e}", path.display()))
+}
+
+/// Saves a plain NeRF (`kind = "nerf"`) with extra informational metadata.
+pub fn save_nerf(path: &Path, nerf: &Nerf, extra: &[(&str, String)]) -> Result<(), String> {
+    let mut w = ModelWriter::new("nerf");
+    w.nerf("", nerf).map_err(|e| format!("{}: {e}", path.display()))?;
+    for (k, v) in extra {
+        w.meta(k, v);
+    }
+    w.write(path)
+}
+
+/// Loads a plain NeRF from model-file bytes.
+pub fn nerf_from_bytes(bytes: &[u8]) -> Result<Nerf, String> {
+    let r = ModelReader::parse(bytes)?;
+    match r.meta("kind")? {
+        "nerf" => r.nerf(""),
+        other => Err(format!("model kind '{other}', expected a plain NeRF ('nerf')")),
+    }
+}
+
+/// Loads a plain NeRF; errors name the file.
+pub fn load_nerf(path: &Path) -> Result<Nerf, String> {
+    let bytes = read_model_bytes(path)?;
+    nerf_from_bytes(&bytes).map_err(|e| format!("{}: {e}", path.display()))
+}

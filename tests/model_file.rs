@@ -1,0 +1,125 @@
+//! Model files (safetensors): a saved NeRF loads back bit for bit and renders the same; the
+//! writer is atomic and refuses non-finite weights; the reader refuses truncated, foreign,
+//! other-version and non-finite files with one-line errors.
+
+use residual_nerf::data::synth;
+use residual_nerf::encoding::HashGridConfig;
+use residual_nerf::field::{Nerf, NerfConfig};
+use residual_nerf::io::model::{ModelReader, ModelWriter};
+use residual_nerf::io::{load_nerf, nerf_from_bytes, save_nerf};
+use residual_nerf::render::{DensityThreshold, OccupancyConfig};
+use residual_nerf::simd::Isa;
+use residual_nerf::train::trainer::{train_nerf, TrainConfig};
+use std::path::{Path, PathBuf};
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("model_file").join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn small_nerf() -> Nerf {
+    let scene = synth::tabletop(8, 4, 0.0);
+    let field = NerfConfig {
+        grid: HashGridConfig { levels: 4, log2_table_size: 10, base_resolution: 4, finest_resolution: 32 },
+        aabb: scene.aabb,
+    };
+    let mut cfg = TrainConfig::with_steps(20);
+    cfg.rays_per_step = 128;
+    cfg.occupancy =
+        OccupancyConfig { resolution: 8, steps_per_diagonal: 64, max_samples: 64, warmup_steps: 4, decay: 0.95 };
+    train_nerf(Isa::detect(), &scene.views, field, &cfg, 0, |_| {})
+}
+
+fn bytes_of(nerf: &Nerf) -> Vec<u8> {
+    let mut w = ModelWriter::new("nerf");
+    w.nerf("", nerf).unwrap();
+    w.to_bytes().unwrap()
+}
+
+#[test]
+fn saved_model_loads_back_exactly_and_renders_the_same() {
+    let nerf = small_nerf();
+    let dir = scratch("roundtrip");
+    let path = dir.join("m.safetensors");
+    save_nerf(&path, &nerf, &[("note", "test".into())]).unwrap();
+    let back = load_nerf(&path).unwrap();
+    assert!(back.params == nerf.params, "parameters differ after a round trip");
+    assert_eq!(back.occupancy.values(), nerf.occupancy.values());
+    assert_eq!(back.occupancy.occupancy(), nerf.occupancy.occupancy());
+    assert_eq!(back.field.config(), nerf.field.config());
+    let s = synth::tabletop(8, 1, 0.3);
+    let v = &s.views[0];
+    let (a, b) = (
+        nerf.render(Isa::detect(), &v.intrinsics, &v.pose, [0.0; 3], DensityThreshold::Sigma(3.0)),
+        back.render(Isa::detect(), &v.intrinsics, &v.pose, [0.0; 3], DensityThreshold::Sigma(3.0)),
+    );
+    assert_eq!(a.rgb, b.rgb);
+    // No temporary file is left beside the model.
+    let names: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name()).collect();
+    assert_eq!(names, ["m.safetensors"]);
+    // The metadata says what the file is.
+    let bytes = std::fs::read(&path).unwrap();
+    let r = ModelReader::parse(&bytes).unwrap();
+    assert_eq!(r.meta("kind").unwrap(), "nerf");
+    assert_eq!(r.meta("note").unwrap(), "test");
+}
+
+#[test]
+fn non_finite_weights_are_never_saved_and_never_loaded() {
+    let mut nerf = small_nerf();
+    let dir = scratch("nonfinite");
+    let path = dir.join("m.safetensors");
+    nerf.params.grid.master[7] = f32::NAN;
+    let e = save_nerf(&path, &nerf, &[]).unwrap_err();
+    assert!(e.contains("grid.params") && e.contains("non-finite"), "{e}");
+    assert!(!path.exists() && std::fs::read_dir(&dir).unwrap().next().is_none(), "nothing may be written");
+    // A file holding a NaN (written by someone else) is refused on load.
+    let good = bytes_of(&small_nerf());
+    let mut bad = good.clone();
+    let header_len = u64::from_le_bytes(good[..8].try_into().unwrap()) as usize;
+    bad[8 + header_len..8 + header_len + 4].copy_from_slice(&f32::NAN.to_le_bytes());
+    let e = nerf_from_bytes(&bad).unwrap_err();
+    assert!(e.contains("non-finite"), "{e}");
+}
+
+#[test]
+fn broken_model_files_are_refused_with_one_line_errors() {
+    let good = bytes_of(&small_nerf());
+    // Same-length replacement inside the JSON header (byte offsets stay valid).
+    let retag = |from: &str, to: &str| {
+        assert_eq!(from.len(), to.len());
+        let mut b = good.clone();
+        let at = b.windows(from.len()).position(|w| w == from.as_bytes()).expect("tag present");
+        b[at..at + to.len()].copy_from_slice(to.as_bytes());
+        b
+    };
+    let mut random = vec![0u8; 4096];
+    let mut x = 12345u32;
+    for b in &mut random {
+        x = x.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+        *b = (x >> 24) as u8;
+    }
+    let mut huge_header = good.clone();
+    huge_header[..8].copy_from_slice(&u64::MAX.to_le_bytes());
+    let cases: Vec<(&str, Vec<u8>, &str)> = vec![
+        ("empty", Vec::new(), "truncated or empty"),
+        ("truncated", good[..good.len() / 2].to_vec(), "truncated"),
+        ("header only", good[..100].to_vec(), "not a model file"),
+        ("random", random, "not a model file"),
+        ("malicious header length", huge_header, "not a model file"),
+        ("other format", retag("residual-nerf-model", "residual-nerf-xxxxx"), "not a residual-nerf model"),
+        ("other version", retag("\"format_version\":\"1\"", "\"format_version\":\"9\""), "format version 9"),
+    ];
+    for (name, bytes, needle) in cases {
+        let e = match std::panic::catch_unwind(|| nerf_from_bytes(&bytes)) {
+            Ok(r) => r.expect_err(name),
+            Err(_) => panic!("{name}: the loader panicked"),
+        };
+        assert!(e.contains(needle), "{name}: '{e}' should contain '{needle}'");
+        assert!(!e.contains('\n'), "{name}: not one line: {e}");
+    }
+    let e = load_nerf(Path::new("/nonexistent/m.safetensors")).unwrap_err();
+    assert!(e.contains("/nonexistent/m.safetensors"), "{e}");
+}
