@@ -28,3 +28,43 @@ fn cli_args_corpus_never_panics() {
         }
     }
 }
+
+/// Runs `f` on every input of `target`'s corpus, failing on a panic.
+fn replay(target: &str, f: impl Fn(&[u8]) + std::panic::RefUnwindSafe) {
+    for (name, data) in corpus(target) {
+        if std::panic::catch_unwind(|| f(&data)).is_err() {
+            panic!("{name}: a parser panicked");
+        }
+    }
+}
+
+#[test]
+fn transforms_json_corpus_never_panics() {
+    replay("transforms_json", |data| {
+        if let Err(errors) = residual_nerf::data::transforms::parse_transforms(data, Path::new("fuzz/transforms.json"))
+        {
+            assert!(!errors.is_empty());
+            let line = residual_nerf::data::DataReport(errors).to_string();
+            assert!(!line.contains('\n'), "error is not one line: {line}");
+        }
+    });
+}
+
+#[test]
+fn image_corpus_never_panics() {
+    use residual_nerf::data::images;
+    replay("image_decode", |data| {
+        let _ = images::decode_rgb(data, [1.0; 3]);
+        let _ = images::decode_mask(data);
+        let _ = images::decode_depth_exr(data);
+    });
+}
+
+#[test]
+fn model_file_corpus_never_panics() {
+    replay("model_file", |data| {
+        if let Err(e) = residual_nerf::io::nerf_from_bytes(data) {
+            assert!(!e.contains('\n'), "error is not one line: {e}");
+        }
+    });
+}

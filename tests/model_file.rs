@@ -27,8 +27,14 @@ fn small_nerf() -> Nerf {
     };
     let mut cfg = TrainConfig::with_steps(20);
     cfg.rays_per_step = 128;
-    cfg.occupancy =
-        OccupancyConfig { resolution: 8, steps_per_diagonal: 64, max_samples: 64, warmup_steps: 4, decay: 0.95 };
+    cfg.occupancy = OccupancyConfig {
+        resolution: 8,
+        steps_per_diagonal: 64,
+        max_samples: 64,
+        warmup_steps: 4,
+        decay: 0.95,
+        ..Default::default()
+    };
     train_nerf(Isa::detect(), &scene.views, field, &cfg, 0, |_| {})
 }
 

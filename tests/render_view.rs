@@ -23,8 +23,14 @@ fn segmented_rendering_equals_whole_ray_compositing() {
     let mut cfg = TrainConfig::with_steps(60);
     cfg.rays_per_step = 512;
     cfg.background = synth::SKY;
-    cfg.occupancy =
-        OccupancyConfig { resolution: 16, steps_per_diagonal: 128, max_samples: 200, warmup_steps: 16, decay: 0.95 };
+    cfg.occupancy = OccupancyConfig {
+        resolution: 16,
+        steps_per_diagonal: 128,
+        max_samples: 200,
+        warmup_steps: 16,
+        decay: 0.95,
+        ..Default::default()
+    };
     let isa = Isa::detect();
     let nerf = train_nerf(isa, &scene.views, field, &cfg, 0, |_| {});
     let test = synth::tabletop(16, 2, 0.4);

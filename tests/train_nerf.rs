@@ -24,8 +24,14 @@ fn nerf_learns_a_synthesised_tabletop() {
     let mut cfg = TrainConfig::with_steps(160);
     cfg.rays_per_step = 512;
     cfg.background = synth::SKY;
-    cfg.occupancy =
-        OccupancyConfig { resolution: 32, steps_per_diagonal: 128, max_samples: 256, warmup_steps: 64, decay: 0.95 };
+    cfg.occupancy = OccupancyConfig {
+        resolution: 32,
+        steps_per_diagonal: 128,
+        max_samples: 256,
+        warmup_steps: 64,
+        decay: 0.95,
+        ..Default::default()
+    };
     let isa = Isa::detect();
     let t0 = std::time::Instant::now();
     let nerf = train_nerf(isa, &train.views, field, &cfg, 40, |s| eprintln!("{s:?}"));
@@ -71,8 +77,14 @@ fn training_is_thread_count_independent() {
     let mut cfg = TrainConfig::with_steps(20);
     cfg.rays_per_step = 256;
     cfg.background = synth::SKY;
-    cfg.occupancy =
-        OccupancyConfig { resolution: 16, steps_per_diagonal: 64, max_samples: 64, warmup_steps: 8, decay: 0.95 };
+    cfg.occupancy = OccupancyConfig {
+        resolution: 16,
+        steps_per_diagonal: 64,
+        max_samples: 64,
+        warmup_steps: 8,
+        decay: 0.95,
+        ..Default::default()
+    };
     let run = |threads: usize| {
         rayon::ThreadPoolBuilder::new()
             .num_threads(threads)

@@ -9,7 +9,7 @@ mod train;
 
 pub use eval::{evaluate, EvalReport};
 pub use progress::Progress;
-pub use train::{default_train_config, TRAIN_STEPS};
+pub use train::{default_train_config, TRAIN_RAYS, TRAIN_STEPS};
 
 use crate::bench::{self, BenchOptions};
 use crate::cli::Command;

@@ -3,14 +3,18 @@
 //!
 //! Limits are measured in the same run so ratios are meaningful on any machine: the fp32
 //! FMA peak ([`peak::fma_loop`]) for the MLP, and a bare random-gather loop over a table of
-//! the grid's size for the hash grid.
+//! the grid's size for the hash grid. The pipeline figures (`train_samples_per_s`,
+//! `render_depth_ms_200`) come from a short training run on the synthetic workspace.
 
 pub mod peak;
 
 use crate::encoding::{HashGrid, HashGridConfig, HashGridParams};
+use crate::field::NerfConfig;
 use crate::mlp::{Activation, Mlp, MlpConfig, MlpContext, MlpParams, MlpWorkspace};
+use crate::render::{DensityThreshold, Intrinsics, ViewRenderer};
 use crate::rng::Rng;
 use crate::simd::Isa;
+use crate::train::trainer::{train_nerf, TrainConfig};
 use crate::train::{Adam, AdamConfig};
 use crate::GradientMode;
 use std::hint::black_box;
@@ -364,6 +368,35 @@ pub fn run(opts: &BenchOptions) -> BenchReport {
         time_reps(reps, || pool1.install(|| step(&mut adam))).iter().map(|s| s * 1e9 / np).collect(),
     );
     push("adam_ns_per_param", "ns/param", time_reps(reps, || step(&mut adam)).iter().map(|s| s * 1e9 / np).collect());
+
+    // The real pipeline: a full training step (march, prune, field forward/backward,
+    // compositing, Adam, occupancy updates amortised) on the synthetic workspace at the default
+    // model size, measured over the last quarter of a short run; then threshold depth of one
+    // 200×200 view of the model that run produced (depth-only path).
+    let scene = crate::data::workspace::workspace(64, 30, 0.0, false);
+    let field = NerfConfig {
+        grid: HashGridConfig { log2_table_size: opts.log2_table_size, ..Default::default() },
+        aabb: scene.aabb,
+    };
+    let mut cfg = TrainConfig::with_steps(scaled(160.0).max(8) as u32);
+    cfg.rays_per_step = 2048;
+    let mut log = Vec::new();
+    let nerf = train_nerf(isa, &scene.views, field, &cfg, 1, |s| log.push(s));
+    let from = log.len() * 3 / 4;
+    let rates: Vec<f64> = log[from..]
+        .windows(2)
+        .map(|w| w[1].samples_per_ray as f64 * cfg.rays_per_step as f64 / (w[1].seconds - w[0].seconds))
+        .collect();
+    push("train_samples_per_s", "samples/s", rates.clone());
+    let rays: Vec<f64> =
+        log[from..].windows(2).map(|w| cfg.rays_per_step as f64 / (w[1].seconds - w[0].seconds)).collect();
+    push("train_rays_per_s", "rays/s", rays);
+    let k = Intrinsics::from_fov_x(200, 200, 50f32.to_radians());
+    let pose = scene.views[0].pose;
+    let mut renderer = ViewRenderer::new();
+    let mut z = vec![0f32; 200 * 200];
+    let v = time_reps(reps, || renderer.depth(isa, &nerf, &k, &pose, DensityThreshold::Sigma(3.0), &mut z));
+    push("render_depth_ms_200", "ms", v.iter().map(|s| s * 1e3).collect());
 
     let mut report =
         BenchReport { cpu_level: isa.to_string(), threads, log2_table_size: opts.log2_table_size, figures };

@@ -5,12 +5,14 @@
 //! - [`images`]: PNG/JPEG colour, mask PNGs, depth EXRs (size checked before decoding).
 //! - [`dataset`]: a split → posed [`crate::train::trainer::View`]s plus ground truth.
 //! - [`error`]: errors naming the file, frame and field.
+//! - [`workspace`]: the synthetic robot workspace with a glass object (background and scene sets).
 
 pub mod dataset;
 pub mod error;
 pub mod images;
 pub mod synth;
 pub mod transforms;
+pub mod workspace;
 
 pub use dataset::{aabb_from_cameras, AabbSource, Dataset, FrameInfo, LoadOptions};
 pub use error::{DataError, DataReport};

@@ -19,10 +19,62 @@ pub const SPHERE: (Vec3, f32) = (Vec3::new(0.1, -0.05, -0.55), 0.35);
 pub struct SynthScene {
     /// Posed views.
     pub views: Vec<View>,
-    /// z-depth (metres) per pixel of each view.
+    /// z-depth (metres) per pixel of each view (first surface hit; NaN or ∞ where none).
     pub depth: Vec<Vec<f32>>,
-    /// The room's box.
+    /// Per view, pixels whose first hit is the transparent object (empty: no such object).
+    pub masks: Vec<Vec<bool>>,
+    /// Per view, the scoring crop `[x0, y0, x1, y1)` (empty: the full image).
+    pub crops: Vec<[u32; 4]>,
+    /// The scene box.
     pub aabb: Aabb,
+}
+
+impl SynthScene {
+    /// Writes the scene as split `split` of a dataset in `dir` (created if missing):
+    /// `transforms_{split}.json` plus `{split}/r_{i}.png` (8-bit), `r_{i}_depth.exr` (z,
+    /// metres), and `r_{i}_mask.png` with the frame's `crop` when the scene has masks. Every file
+    /// is written atomically.
+    pub fn write_split(&self, dir: &std::path::Path, split: &str) -> Result<(), String> {
+        use crate::io::export::{depth_exr_bytes, rgb_png_bytes, write};
+        let sub = dir.join(split);
+        std::fs::create_dir_all(&sub).map_err(|e| format!("{}: cannot create: {e}", sub.display()))?;
+        let k = self.views.first().map(|v| v.intrinsics).ok_or("synth: no views")?;
+        let mut frames = Vec::new();
+        for (i, v) in self.views.iter().enumerate() {
+            let (w, h) = (v.intrinsics.width, v.intrinsics.height);
+            let name = format!("r_{i}");
+            write(&sub.join(format!("{name}.png")), rgb_png_bytes(&v.rgb, w, h))?;
+            let z: Vec<f32> = self.depth[i].iter().map(|&z| if z.is_finite() { z } else { f32::NAN }).collect();
+            write(&sub.join(format!("{name}_depth.exr")), depth_exr_bytes(&z, w, h))?;
+            let m = v.pose.rotation;
+            let t = v.pose.translation;
+            let rows: Vec<[f32; 4]> = (0..3).map(|r| [m.x_axis[r], m.y_axis[r], m.z_axis[r], t[r]]).collect();
+            let mut frame = serde_json::json!({
+                "file_path": format!("./{split}/{name}"),
+                "transform_matrix": [rows[0], rows[1], rows[2], [0.0, 0.0, 0.0, 1.0]],
+                "depth_file_path": format!("{split}/{name}_depth.exr"),
+            });
+            if let Some(mask) = self.masks.get(i) {
+                let px: Vec<u8> = mask.iter().map(|&b| if b { 255 } else { 0 }).collect();
+                let img = image::GrayImage::from_raw(w, h, px).expect("mask is width × height");
+                let mut bytes = std::io::Cursor::new(Vec::new());
+                img.write_to(&mut bytes, image::ImageFormat::Png).map_err(|e| format!("mask PNG: {e}"))?;
+                write(&sub.join(format!("{name}_mask.png")), Ok(bytes.into_inner()))?;
+                frame["mask_path"] = format!("{split}/{name}_mask.png").into();
+                frame["crop"] = self.crops[i].to_vec().into();
+            }
+            frames.push(frame);
+        }
+        let json = serde_json::json!({
+            "camera_angle_x": 2.0 * (0.5 * k.width as f32 / k.fx).atan(),
+            "fl_x": k.fx, "fl_y": k.fy, "cx": k.cx, "cy": k.cy, "w": k.width, "h": k.height,
+            "aabb": [self.aabb.min.to_array(), self.aabb.max.to_array()],
+            "depth_unit": "m", "depth_kind": "z",
+            "frames": frames,
+        });
+        let text = serde_json::to_string_pretty(&json).expect("plain json");
+        crate::io::write_atomic(&dir.join(format!("transforms_{split}.json")), text.as_bytes())
+    }
 }
 
 /// Direction towards the (distant) light of both scenes.
@@ -118,7 +170,13 @@ pub fn room(size: u32, n_views: usize, phase: f32) -> SynthScene {
     let (views, depth) = render_views(&k, poses, trace);
     // The box encloses the room with a margin, so the walls are inside it (marching ends at the
     // box; a surface on its faces would have no room for density).
-    SynthScene { views, depth, aabb: Aabb { min: Vec3::splat(-1.1 * ROOM), max: Vec3::splat(1.1 * ROOM) } }
+    SynthScene {
+        views,
+        depth,
+        masks: Vec::new(),
+        crops: Vec::new(),
+        aabb: Aabb { min: Vec3::splat(-1.1 * ROOM), max: Vec3::splat(1.1 * ROOM) },
+    }
 }
 
 /// Sky colour of the tabletop scene (the compositing background `c_bg` for rays that miss).
@@ -156,5 +214,11 @@ pub fn tabletop(size: u32, n_views: usize, phase: f32) -> SynthScene {
         look_at_pose(eye, TABLE_SPHERE.0)
     });
     let (views, depth) = render_views(&k, poses, trace_tabletop);
-    SynthScene { views, depth, aabb: Aabb { min: Vec3::new(-1.0, -1.0, -0.25), max: Vec3::new(1.0, 1.0, 1.0) } }
+    SynthScene {
+        views,
+        depth,
+        masks: Vec::new(),
+        crops: Vec::new(),
+        aabb: Aabb { min: Vec3::new(-1.0, -1.0, -0.25), max: Vec3::new(1.0, 1.0, 1.0) },
+    }
 }

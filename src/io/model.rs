@@ -116,6 +116,7 @@ fn config_json(cfg: &NerfConfig, occ: &OccupancyConfig) -> Value {
         "occupancy": {
             "resolution": occ.resolution, "steps_per_diagonal": occ.steps_per_diagonal,
             "max_samples": occ.max_samples, "warmup_steps": occ.warmup_steps, "decay": occ.decay,
+            "near": occ.near,
         },
     })
 }
@@ -243,6 +244,11 @@ fn parse_config(v: &Value) -> Result<(NerfConfig, OccupancyConfig), String> {
         max_samples: int(o, "max_samples", 1, 1 << 16)? as u32,
         warmup_steps: int(o, "warmup_steps", 0, u32::MAX as u64)? as u32,
         decay: decay as f32,
+        near: o
+            .get("near")
+            .and_then(Value::as_f64)
+            .filter(|n| (0.0..1e6).contains(n))
+            .ok_or("'near' not in [0, 1e6)")? as f32,
     };
     Ok((NerfConfig { grid, aabb }, occ))
 }

@@ -65,11 +65,21 @@ pub struct OccupancyConfig {
     pub warmup_steps: u32,
     /// Decay of a cell's value per update. Defaults to 0.95.
     pub decay: f32,
+    /// Marching starts at least this far from the ray origin (dataset units; metres for
+    /// ours), so no density can grow right in front of a camera (floaters). Defaults to 0.1.
+    pub near: f32,
 }
 
 impl Default for OccupancyConfig {
     fn default() -> Self {
-        OccupancyConfig { resolution: 128, steps_per_diagonal: 1024, max_samples: 1024, warmup_steps: 256, decay: 0.95 }
+        OccupancyConfig {
+            resolution: 128,
+            steps_per_diagonal: 1024,
+            max_samples: 1024,
+            warmup_steps: 256,
+            decay: 0.95,
+            near: 0.1,
+        }
     }
 }
 
@@ -267,7 +277,9 @@ impl OccupancyGrid {
 
     /// Where a ray (unit `dir`) is inside the box; `None` when it misses.
     pub fn span(&self, origin: Vec3, dir: Vec3) -> Option<RaySpan> {
-        self.aabb.intersect(origin, dir).map(|(near, far)| RaySpan { near, far })
+        let (near, far) = self.aabb.intersect(origin, dir)?;
+        let near = near.max(self.config.near);
+        (near < far).then_some(RaySpan { near, far })
     }
 
     /// Appends up to `max` samples of a ray from lattice point `t` (the span's `near`, or what a

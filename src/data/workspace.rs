@@ -1,0 +1,298 @@
+//! The synthetic robot workspace (issue #3's scene synthesiser): a small analytic ray tracer of
+//! a wooden table in an open-top room with three opaque objects and, in the scene version, a
+//! solid glass sphere with Fresnel reflection and refraction. It writes background and scene
+//! image sets in the dataset layout (poses, z-depth ground truth, masks, crops), so the crate's
+//! tests and demo need no files.
+//!
+//! World: metres, +Z up, table top at z = 0 (1.6 m square), floor at z = −0.7, walls at
+//! x, y = ±1.5 up to z = 1.2, sky above. Cameras 1.6 m from (0, 0, 0.1), elevation 25°–65°,
+//! 50° horizontal field of view, looking at that point. Depth ground truth is the **first**
+//! surface hit by the pixel-centre ray — on glass, the glass's outer surface — as planar z.
+//! The mask marks pixels whose first hit is glass; the crop is the mask's bounding box grown
+//! by 10% of its larger side (the full image when there is no glass), as in `shared/data/dev`.
+
+use super::synth::{look_at_pose, SynthScene};
+use crate::render::{pixel_ray, Aabb, Intrinsics, Ray};
+use crate::train::trainer::View;
+use glam::Vec3;
+use rayon::prelude::*;
+
+/// Sky colour (rays leaving through the open top).
+pub const SKY: [f32; 3] = [0.7, 0.78, 0.9];
+/// Glass sphere: centre, radius (resting on the table).
+pub const GLASS: (Vec3, f32) = (Vec3::new(0.05, -0.08, 0.16), 0.16);
+/// Index of refraction of the glass.
+pub const GLASS_IOR: f32 = 1.5;
+/// Point every camera looks at.
+pub const TARGET: Vec3 = Vec3::new(0.0, 0.0, 0.1);
+/// Camera distance from [`TARGET`].
+pub const CAMERA_DISTANCE: f32 = 1.6;
+
+const TABLE: f32 = 0.8;
+const FLOOR: f32 = -0.7;
+const WALL: f32 = 1.5;
+const WALL_TOP: f32 = 1.2;
+const BALL: (Vec3, f32) = (Vec3::new(0.42, 0.3, 0.13), 0.13);
+const BOX_MIN: Vec3 = Vec3::new(-0.6, 0.12, 0.0);
+const BOX_MAX: Vec3 = Vec3::new(-0.3, 0.42, 0.22);
+/// Vertical cylinder: base centre (z = 0), radius, height.
+const CAN: (Vec3, f32, f32) = (Vec3::new(-0.32, -0.42, 0.0), 0.11, 0.3);
+/// Bounces through glass before a ray gives up (and returns the sky).
+const MAX_DEPTH: u32 = 6;
+const EPS: f32 = 1e-4;
+
+/// The scene box: the room with a margin, so walls and floor are strictly inside.
+pub fn aabb() -> Aabb {
+    Aabb {
+        min: Vec3::new(-WALL - 0.05, -WALL - 0.05, FLOOR - 0.05),
+        max: Vec3::new(WALL + 0.05, WALL + 0.05, WALL_TOP + 0.05),
+    }
+}
+
+#[derive(Clone, Copy)]
+enum Surface {
+    Diffuse([f32; 3]),
+    Glass,
+}
+
+#[derive(Clone, Copy)]
+struct Hit {
+    t: f32,
+    normal: Vec3,
+    surface: Surface,
+}
+
+fn light() -> Vec3 {
+    Vec3::new(0.35, -0.45, 1.0).normalize()
+}
+
+fn stripes(x: f32, k: f32) -> f32 {
+    0.5 + 0.5 * (x * k).sin()
+}
+
+fn checker(u: f32, v: f32, k: f32) -> f32 {
+    (((u * k).floor() + (v * k).floor()) as i32).rem_euclid(2) as f32
+}
+
+/// Nearest root `t > EPS` of a sphere (works from inside too), with the outward normal.
+fn sphere(ray: &Ray, (c, r): (Vec3, f32)) -> Option<(f32, Vec3)> {
+    let oc = ray.origin - c;
+    let b = oc.dot(ray.dir);
+    let disc = b * b - (oc.length_squared() - r * r);
+    if disc <= 0.0 {
+        return None;
+    }
+    let s = disc.sqrt();
+    let t = if -b - s > EPS { -b - s } else { -b + s };
+    (t > EPS).then(|| (t, (ray.at(t) - c) / r))
+}
+
+fn keep(best: &mut Option<Hit>, t: f32, normal: Vec3, surface: Surface) {
+    if t > EPS && best.is_none_or(|b| t < b.t) {
+        *best = Some(Hit { t, normal, surface });
+    }
+}
+
+/// The nearest surface along `ray` (glass included when `glass`).
+fn intersect(ray: &Ray, glass: bool) -> Option<Hit> {
+    let mut best = None;
+    let (o, d) = (ray.origin, ray.dir);
+    // Table top (z = 0) and floor.
+    if d.z != 0.0 {
+        let t = -o.z / d.z;
+        let p = ray.at(t);
+        if p.x.abs() <= TABLE && p.y.abs() <= TABLE {
+            let grain = stripes(p.x * 0.3 + 0.05 * (p.y * 9.0).sin() + (p.x * p.x + p.y * p.y).sqrt(), 25.0);
+            let c = [0.55 + 0.2 * grain, 0.36 + 0.12 * grain, 0.2 + 0.06 * grain];
+            keep(&mut best, t, Vec3::new(0.0, 0.0, -d.z.signum()), Surface::Diffuse(c));
+        }
+        let t = (FLOOR - o.z) / d.z;
+        let p = ray.at(t);
+        if p.x.abs() <= WALL && p.y.abs() <= WALL {
+            let c = checker(p.x, p.y, 4.0);
+            keep(&mut best, t, Vec3::Z, Surface::Diffuse([0.35 + 0.3 * c, 0.3 + 0.2 * c, 0.28 + 0.1 * c]));
+        }
+    }
+    // Walls (inside faces), each with its own texture.
+    for axis in 0..2 {
+        if d[axis] == 0.0 {
+            continue;
+        }
+        for sign in [-1.0f32, 1.0] {
+            let t = (sign * WALL - o[axis]) / d[axis];
+            let p = ray.at(t);
+            let u = p[1 - axis];
+            if p.z >= FLOOR && p.z <= WALL_TOP && u.abs() <= WALL {
+                let c = match (axis, sign > 0.0) {
+                    (0, false) => [0.75, 0.55 + 0.3 * stripes(u, 12.0), 0.4],
+                    (0, true) => [0.4, 0.5 + 0.3 * checker(u, p.z, 5.0), 0.7],
+                    (_, false) => [0.5 + 0.35 * stripes(p.z, 15.0), 0.65, 0.5],
+                    _ => [0.8, 0.78, 0.55 + 0.35 * stripes(u + p.z, 9.0)],
+                };
+                let mut n = Vec3::ZERO;
+                n[axis] = -sign;
+                keep(&mut best, t, n, Surface::Diffuse(c));
+            }
+        }
+    }
+    // Ball (banded).
+    if let Some((t, n)) = sphere(ray, BALL) {
+        let band = (n.z * 5.0).floor() as i32 % 2 == 0;
+        keep(&mut best, t, n, Surface::Diffuse(if band { [0.85, 0.25, 0.15] } else { [0.95, 0.8, 0.2] }));
+    }
+    // Box (checker).
+    let inv = d.recip();
+    let (a, b) = ((BOX_MIN - o) * inv, (BOX_MAX - o) * inv);
+    let (lo, hi) = (a.min(b), a.max(b));
+    let (near, far) = (lo.max_element(), hi.min_element());
+    if near < far && near > EPS {
+        let p = ray.at(near);
+        let axis = if lo.x == near {
+            0
+        } else if lo.y == near {
+            1
+        } else {
+            2
+        };
+        let mut n = Vec3::ZERO;
+        n[axis] = -d[axis].signum();
+        let c = checker(p.x + p.z, p.y - p.z, 20.0);
+        keep(&mut best, near, n, Surface::Diffuse([0.2 + 0.6 * c, 0.3 + 0.5 * c, 0.75]));
+    }
+    // Can: vertical cylinder with a top cap.
+    let (base, r, h) = CAN;
+    let (ox, oy) = (o.x - base.x, o.y - base.y);
+    let qa = d.x * d.x + d.y * d.y;
+    if qa > 0.0 {
+        let qb = ox * d.x + oy * d.y;
+        let disc = qb * qb - qa * (ox * ox + oy * oy - r * r);
+        if disc > 0.0 {
+            let t = (-qb - disc.sqrt()) / qa;
+            let p = ray.at(t);
+            if p.z >= 0.0 && p.z <= h {
+                let n = Vec3::new(p.x - base.x, p.y - base.y, 0.0) / r;
+                let c = stripes(p.z, 60.0);
+                keep(&mut best, t, n, Surface::Diffuse([0.25 + 0.5 * c, 0.6, 0.3 + 0.3 * c]));
+            }
+        }
+    }
+    if d.z != 0.0 {
+        let t = (h - o.z) / d.z;
+        let p = ray.at(t);
+        if (p.x - base.x).powi(2) + (p.y - base.y).powi(2) <= r * r {
+            keep(&mut best, t, Vec3::Z, Surface::Diffuse([0.85, 0.85, 0.8]));
+        }
+    }
+    if glass {
+        if let Some((t, n)) = sphere(ray, GLASS) {
+            keep(&mut best, t, n, Surface::Glass);
+        }
+    }
+    best
+}
+
+/// Unpolarised Fresnel reflectance for `cos_i` (incidence cosine) from index `n1` into `n2`;
+/// 1 under total internal reflection.
+fn fresnel(cos_i: f32, n1: f32, n2: f32) -> f32 {
+    let sin_t = n1 / n2 * (1.0 - cos_i * cos_i).max(0.0).sqrt();
+    if sin_t >= 1.0 {
+        return 1.0;
+    }
+    let cos_t = (1.0 - sin_t * sin_t).sqrt();
+    let rs = (n1 * cos_i - n2 * cos_t) / (n1 * cos_i + n2 * cos_t);
+    let rp = (n1 * cos_t - n2 * cos_i) / (n1 * cos_t + n2 * cos_i);
+    0.5 * (rs * rs + rp * rp)
+}
+
+/// Colour seen along `ray` (glass present when `glass`).
+fn shade(ray: &Ray, glass: bool, depth: u32) -> [f32; 3] {
+    let Some(hit) = intersect(ray, glass) else {
+        return SKY;
+    };
+    match hit.surface {
+        Surface::Diffuse(albedo) => {
+            let lambert = hit.normal.dot(light()).max(0.0);
+            albedo.map(|a| a * (0.4 + 0.6 * lambert))
+        }
+        Surface::Glass if depth >= MAX_DEPTH => SKY,
+        Surface::Glass => {
+            let p = ray.at(hit.t);
+            let entering = ray.dir.dot(hit.normal) < 0.0;
+            let n = if entering { hit.normal } else { -hit.normal };
+            let (n1, n2) = if entering { (1.0, GLASS_IOR) } else { (GLASS_IOR, 1.0) };
+            let cos_i = -ray.dir.dot(n);
+            let f = fresnel(cos_i, n1, n2);
+            let reflect = ray.dir + 2.0 * cos_i * n;
+            let bounce = |dir: Vec3, side: Vec3| {
+                let r = Ray { origin: p + side * 1e-3, dir: dir.normalize(), z_per_t: 1.0 };
+                shade(&r, glass, depth + 1)
+            };
+            let refl = bounce(reflect, n);
+            if f >= 1.0 {
+                return refl;
+            }
+            let eta = n1 / n2;
+            let k = 1.0 - eta * eta * (1.0 - cos_i * cos_i);
+            let refract = eta * ray.dir + (eta * cos_i - k.sqrt()) * n;
+            let refr = bounce(refract, -n);
+            // A faint green tint per transmission, as thick glass has.
+            let tint = [0.96, 0.99, 0.97];
+            std::array::from_fn(|c| f * refl[c] + (1.0 - f) * refr[c] * tint[c])
+        }
+    }
+}
+
+/// Renders `n_views` views of `size × size` of the workspace, with the glass sphere when
+/// `glass`, cameras at azimuths offset by `phase` (radians). Deterministic; parallel over views.
+pub fn workspace(size: u32, n_views: usize, phase: f32, glass: bool) -> SynthScene {
+    let k = Intrinsics::from_fov_x(size, size, 50f32.to_radians());
+    let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
+    let rendered: Vec<(View, Vec<f32>, Vec<bool>)> = (0..n_views)
+        .into_par_iter()
+        .map(|v| {
+            let a = phase + v as f32 * golden;
+            // Elevation uniform in sin over 25°–65° (a low-discrepancy sequence, not random).
+            let s = (25f32.to_radians().sin())
+                + (65f32.to_radians().sin() - 25f32.to_radians().sin()) * ((v as f32 * 0.618_034 + 0.31).fract());
+            let elev = s.asin();
+            let eye = TARGET + CAMERA_DISTANCE * Vec3::new(elev.cos() * a.cos(), elev.cos() * a.sin(), elev.sin());
+            let pose = look_at_pose(eye, TARGET);
+            let n = (size * size) as usize;
+            let (mut rgb, mut z, mut mask) = (Vec::with_capacity(n), Vec::with_capacity(n), Vec::with_capacity(n));
+            for j in 0..size {
+                for i in 0..size {
+                    let ray = pixel_ray(&k, &pose, i, j);
+                    let first = intersect(&ray, glass);
+                    rgb.push(shade(&ray, glass, 0));
+                    z.push(first.map_or(f32::NAN, |h| ray.range_to_z(h.t)));
+                    mask.push(first.is_some_and(|h| matches!(h.surface, Surface::Glass)));
+                }
+            }
+            (View { intrinsics: k, pose, rgb }, z, mask)
+        })
+        .collect();
+    let mut scene =
+        SynthScene { views: Vec::new(), depth: Vec::new(), masks: Vec::new(), crops: Vec::new(), aabb: aabb() };
+    for (view, z, mask) in rendered {
+        scene.crops.push(crop_of(&mask, size, size));
+        scene.views.push(view);
+        scene.depth.push(z);
+        scene.masks.push(mask);
+    }
+    scene
+}
+
+/// The mask's bounding box grown by ⌈10%⌉ of its larger side, clamped; the full image when
+/// the mask is empty.
+pub fn crop_of(mask: &[bool], w: u32, h: u32) -> [u32; 4] {
+    let (mut x0, mut y0, mut x1, mut y1) = (w, h, 0, 0);
+    for (p, _) in mask.iter().enumerate().filter(|(_, m)| **m) {
+        let (x, y) = (p as u32 % w, p as u32 / w);
+        (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x + 1), y1.max(y + 1));
+    }
+    if x1 == 0 {
+        return [0, 0, w, h];
+    }
+    let grow = ((x1 - x0).max(y1 - y0) as f32 * 0.1).ceil() as u32;
+    [x0.saturating_sub(grow), y0.saturating_sub(grow), (x1 + grow).min(w), (y1 + grow).min(h)]
+}
