@@ -8,6 +8,10 @@
 //! buffers, reduced in slot order, and the grid backward runs one level per task — so results
 //! do not depend on the thread count.
 
+pub mod mix;
+pub mod mixnet;
+pub mod residual;
+
 use crate::encoding::{sh4, HashGrid, HashGridConfig, HashGridParams, SH4_COEFFS};
 use crate::mlp::{Activation, Mlp, MlpConfig, MlpContext, MlpParams, MlpWorkspace};
 use crate::render::Aabb;

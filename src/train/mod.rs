@@ -1,7 +1,8 @@
 //! Training: the optimiser, its learning-rate schedule, thread-independent gradient slots and
-//! the NeRF trainer loop.
+//! the trainer loop over any [`model::Model`] (a NeRF, or a residual model).
 
 pub mod adam;
+pub mod model;
 pub mod slots;
 pub mod trainer;
 

@@ -9,17 +9,16 @@
 //! thread count.
 
 pub use crate::field::Nerf;
-use crate::field::{FieldContext, NerfConfig, NerfField, NerfGrads};
-use crate::mlp::Activation;
+use crate::field::{NerfConfig, NerfField};
 use crate::render::{
-    composite_ray, composite_ray_backward, pixel_ray, Intrinsics, OccupancyConfig, OccupancyGrid, PackedSamples, Pose,
-    Ray, RayAccumulator,
+    composite_ray, composite_ray_backward, pixel_ray, Aabb, Intrinsics, OccupancyConfig, OccupancyGrid, PackedSamples,
+    Pose, Ray, RayAccumulator,
 };
 use crate::rng::Rng;
 use crate::simd::Isa;
+use crate::train::model::Model;
 use crate::train::slots::{slot_range, SLOTS};
 use crate::train::{Adam, AdamConfig, LrSchedule};
-use crate::GradientMode;
 use glam::Vec3;
 use rayon::prelude::*;
 use std::time::Instant;
@@ -110,13 +109,10 @@ struct StepBuffers {
     samples: PackedSamples,
     positions: Vec<Vec3>,
     dirs: Vec<Vec3>,
-    raw: Vec<f32>,
-    rgb_raw: Vec<[f32; 3]>,
     sigma: Vec<f32>,
     rgb: Vec<[f32; 3]>,
-    d_raw: Vec<f32>,
-    d_rgb_raw: Vec<[f32; 3]>,
-    ctx: FieldContext,
+    d_sigma: Vec<f32>,
+    d_rgb: Vec<[f32; 3]>,
 }
 
 /// Marches `rays` into `out` (packed in ray order) and fills per-sample positions and directions.
@@ -142,12 +138,12 @@ pub fn march_rays(
 }
 
 /// Copies each ray's samples of `marched` up to its opaque point — the samples
-/// [`composite_ray`] uses, given raw densities `raw` — into `out`, `positions`, `dirs`.
+/// [`composite_ray`] uses, given densities `sigma` — into `out`, `positions`, `dirs`.
 fn keep_until_opaque(
     marched: &PackedSamples,
     marched_pos: &[Vec3],
     marched_dirs: &[Vec3],
-    raw: &[f32],
+    sigma: &[f32],
     out: &mut PackedSamples,
     positions: &mut Vec<Vec3>,
     dirs: &mut Vec<Vec3>,
@@ -162,23 +158,13 @@ fn keep_until_opaque(
             if acc.is_opaque() {
                 break;
             }
-            acc.push(Activation::TruncExp.forward(raw[i]), marched.delta[i], 0.0, [0.0; 3]);
+            acc.push(sigma[i], marched.delta[i], 0.0, [0.0; 3]);
             out.t.push(marched.t[i]);
             out.delta.push(marched.delta[i]);
             positions.push(marched_pos[i]);
             dirs.push(marched_dirs[i]);
         }
         out.rays.push((start, out.t.len() as u32 - start));
-    }
-}
-
-/// σ = trunc_exp(s) and c = sigmoid(c′), element-wise into caller buffers.
-fn activate(raw: &[f32], rgb_raw: &[[f32; 3]], sigma: &mut [f32], rgb: &mut [[f32; 3]]) {
-    for (o, &s) in sigma.iter_mut().zip(raw) {
-        *o = Activation::TruncExp.forward(s);
-    }
-    for (o, c) in rgb.iter_mut().zip(rgb_raw) {
-        *o = c.map(|v| Activation::Sigmoid.forward(v));
     }
 }
 
@@ -216,37 +202,54 @@ fn split_at_bounds<'a, T>(buf: &'a mut [T], groups: &[RayGroup]) -> Vec<&'a mut 
     parts
 }
 
-/// Trains a NeRF on `views` inside `aabb`; `log` receives stats every `log_every` steps (0: never).
+/// Trains a NeRF of `field_config` on `views`; `log` receives stats every `log_every` steps
+/// (0: never).
 pub fn train_nerf(
     isa: Isa,
     views: &[View],
     field_config: NerfConfig,
     cfg: &TrainConfig,
     log_every: u32,
-    mut log: impl FnMut(StepStats),
+    log: impl FnMut(StepStats),
 ) -> Nerf {
+    let aabb = field_config.aabb;
+    let field = NerfField::new(field_config);
+    let (params, occupancy) = train_model(isa, &field, aabb, views, cfg, log_every, log);
+    Nerf { field, params, occupancy }
+}
+
+/// Trains `model` on `views` inside `aabb` from fresh parameters (seeded by `cfg.seed`);
+/// returns the parameters and the occupancy grid. `log` receives stats every `log_every` steps.
+pub fn train_model<M: Model>(
+    isa: Isa,
+    model: &M,
+    aabb: Aabb,
+    views: &[View],
+    cfg: &TrainConfig,
+    log_every: u32,
+    mut log: impl FnMut(StepStats),
+) -> (M::Params, OccupancyGrid) {
     assert!(!views.is_empty(), "train: no training views");
     // Denormals are ~100× slower on x86; every thread of the pool flushes them while training.
     let modes: Vec<u64> = rayon::broadcast(|_| crate::simd::fpmode::flush_denormals());
     let main_mode = crate::simd::fpmode::flush_denormals();
-    let field = NerfField::new(field_config);
     let mut rng = Rng::new(cfg.seed);
-    let mut params = field.init_params(&mut rng);
-    let mut occupancy = OccupancyGrid::new(field.config().aabb, cfg.occupancy.clone());
-    let mut grads: NerfGrads = field.zero_grads();
-    let mut adam_grid = Adam::new(grads.grid.len(), AdamConfig::default());
-    let mut adam_density = Adam::new(grads.density.len(), AdamConfig { l2: 1e-6, ..Default::default() });
-    let mut adam_colour = Adam::new(grads.colour.len(), AdamConfig { l2: 1e-6, ..Default::default() });
+    let mut params = model.init_params(&mut rng);
+    let mut occupancy = OccupancyGrid::new(aabb, cfg.occupancy.clone());
+    let mut grads = model.zero_grads();
+    let mut adams: Vec<Adam> = model
+        .groups(&mut params, &grads)
+        .iter()
+        .map(|g| Adam::new(g.master.len(), AdamConfig { l2: g.l2, ..Default::default() }))
+        .collect();
+    model.after_step(&mut params);
     let mut buf = StepBuffers::default();
-    let mut occ_ctx = FieldContext::default();
+    let mut ctx = M::Context::default();
     let start = Instant::now();
     for step in 0..cfg.steps {
         if step % cfg.occupancy_interval.max(1) == 0 {
             let mut orng = Rng::stream(cfg.seed ^ 0x0CC, step as u64);
-            occupancy.update(step, &mut orng, |pts, sigma| {
-                field.density(isa, &params, pts, sigma, &mut occ_ctx);
-                sigma.iter_mut().for_each(|s| *s = Activation::TruncExp.forward(*s));
-            });
+            occupancy.update(step, &mut orng, |pts, sigma| model.density(isa, &params, pts, sigma, &mut ctx));
         }
         // 1. Rays: uniform over all pixels of all views.
         let mut srng = Rng::stream(cfg.seed, step as u64);
@@ -259,45 +262,40 @@ pub fn train_nerf(
             buf.rays.push(pixel_ray(&v.intrinsics, &v.pose, p % w, p / w));
             buf.targets.push(v.rgb[p as usize]);
         }
-        // 2. March, 3. field forward.
+        // 2. March; drop the samples behind each ray's opaque point (T < 1e-4): a density-only
+        //    pass finds them; compositing ignores them anyway, so the result is unchanged and
+        //    the full forward/backward runs on the samples that matter (nerfacc's early stop).
         march_rays(&occupancy, &buf.rays, &mut buf.marched, &mut buf.marched_pos, &mut buf.marched_dirs);
         let marched = buf.marched.len();
-        // 2b. Drop the samples behind each ray's opaque point (T < 1e-4): a density-only pass
-        //     finds them; compositing ignores them anyway, so the result is unchanged and the
-        //     full forward/backward runs on the samples that matter (nerfacc's early stop).
-        buf.raw.resize(marched, 0.0);
-        if marched > 0 {
-            field.density(isa, &params, &buf.marched_pos, &mut buf.raw, &mut buf.ctx);
-        }
+        buf.sigma.resize(marched, 0.0);
+        model.density(isa, &params, &buf.marched_pos, &mut buf.sigma, &mut ctx);
         keep_until_opaque(
             &buf.marched,
             &buf.marched_pos,
             &buf.marched_dirs,
-            &buf.raw,
+            &buf.sigma,
             &mut buf.samples,
             &mut buf.positions,
             &mut buf.dirs,
         );
+        // 3. Forward: activated density and colour per sample.
         let n = buf.positions.len();
-        buf.raw.resize(n, 0.0);
-        buf.rgb_raw.resize(n, [0.0; 3]);
-        field.forward(isa, &params, &buf.positions, &buf.dirs, &mut buf.raw, &mut buf.rgb_raw, &mut buf.ctx);
-        // 4. Activate, composite, loss, and back through compositing and the activations.
-        //    Rays are processed in SLOTS fixed groups whose samples are contiguous, each group
-        //    writing its own slices of the step buffers (no per-ray allocation).
         buf.sigma.resize(n, 0.0);
         buf.rgb.resize(n, [0.0; 3]);
-        activate(&buf.raw, &buf.rgb_raw, &mut buf.sigma, &mut buf.rgb);
-        buf.d_raw.resize(n, 0.0);
-        buf.d_rgb_raw.resize(n, [0.0; 3]);
+        model.forward(isa, &params, &buf.positions, &buf.dirs, &mut buf.sigma, &mut buf.rgb, &mut ctx);
+        // 4. Composite, loss, and back through compositing. Rays are processed in SLOTS fixed
+        //    groups whose samples are contiguous, each group writing its own slices of the
+        //    step buffers (no per-ray allocation).
+        buf.d_sigma.resize(n, 0.0);
+        buf.d_rgb.resize(n, [0.0; 3]);
         let scale = 2.0 / (3 * cfg.rays_per_step) as f32;
         let (samples, sigma, rgb, targets) = (&buf.samples, &buf.sigma, &buf.rgb, &buf.targets);
         let groups = ray_groups(&samples.rays);
-        let d_raw_parts = split_at_bounds(&mut buf.d_raw, &groups);
-        let d_rgb_parts = split_at_bounds(&mut buf.d_rgb_raw, &groups);
+        let d_sigma_parts = split_at_bounds(&mut buf.d_sigma, &groups);
+        let d_rgb_parts = split_at_bounds(&mut buf.d_rgb, &groups);
         let losses: Vec<f64> = groups
             .par_iter()
-            .zip(d_raw_parts)
+            .zip(d_sigma_parts)
             .zip(d_rgb_parts)
             .map(|((g, d_s), d_c)| {
                 let mut loss = 0.0f64;
@@ -315,37 +313,27 @@ pub fn train_nerf(
                     );
                     let err: [f32; 3] = std::array::from_fn(|k| c.rgb[k] - targets[ray][k]);
                     loss += err.iter().map(|e| (e * e) as f64).sum::<f64>();
-                    let (ds, dc) = (&mut d_s[local.clone()], &mut d_c[local]);
                     composite_ray_backward(
                         &sigma[r.clone()],
                         &samples.delta[r.clone()],
-                        &rgb[r.clone()],
+                        &rgb[r],
                         &c,
                         err.map(|e| e * scale),
-                        ds,
-                        dc,
+                        &mut d_s[local.clone()],
+                        &mut d_c[local],
                     );
-                    // dL/ds = dL/dσ · trunc_exp′, dL/dc′ = dL/dc · sigmoid′ (both from the outputs).
-                    for ((g, &sg), (gc, col)) in ds.iter_mut().zip(&sigma[r.clone()]).zip(dc.iter_mut().zip(&rgb[r])) {
-                        *g *= Activation::TruncExp.derivative_from_output(sg);
-                        for k in 0..3 {
-                            gc[k] *= Activation::Sigmoid.derivative_from_output(col[k]);
-                        }
-                    }
                 }
                 loss
             })
             .collect();
         let loss: f64 = losses.iter().sum();
-        // 5. Field backward, 6. Adam.
-        field.backward(isa, &params, &mut buf.ctx, &buf.d_raw, &buf.d_rgb_raw, &mut grads, GradientMode::Overwrite);
+        // 5. Backward through the model, 6. Adam on every parameter group.
+        model.backward(isa, &params, &mut ctx, &buf.d_sigma, &buf.d_rgb, &mut grads);
         let lr = cfg.schedule.lr(step);
-        let half: &mut [u16] = bytemuck::cast_slice_mut(&mut params.grid.table);
-        adam_grid.step(isa, lr, &mut params.grid.master, &grads.grid, Some(half));
-        adam_density.step(isa, lr, params.density.weights_mut(), &grads.density, None);
-        params.density.sync();
-        adam_colour.step(isa, lr, params.colour.weights_mut(), &grads.colour, None);
-        params.colour.sync();
+        for (adam, g) in adams.iter_mut().zip(model.groups(&mut params, &grads)) {
+            adam.step(isa, lr, g.master, g.grad, g.mirror);
+        }
+        model.after_step(&mut params);
         if log_every > 0 && ((step + 1) % log_every == 0 || step + 1 == cfg.steps) {
             log(StepStats {
                 step,
@@ -359,5 +347,5 @@ pub fn train_nerf(
     }
     rayon::broadcast(|ctx| crate::simd::fpmode::restore(modes[ctx.index()]));
     crate::simd::fpmode::restore(main_mode);
-    Nerf { field, params, occupancy }
+    (params, occupancy)
 }

@@ -1,0 +1,180 @@
+//! The Mixnet Φ_mix (DESIGN §2.3): position → its own small hash grid → MLP (1 hidden layer of
+//! 32) → one logit `m`, β = sigmoid(m). Position only; trained (unlike the authors' code,
+//! whose Mixnet weights never reached the optimiser). Parallel like the NeRF field: grid
+//! encoding on the pool, MLP per fixed slot, gradients reduced in slot order.
+
+use crate::encoding::{HashGrid, HashGridConfig, HashGridParams};
+use crate::mlp::{Activation, Mlp, MlpConfig, MlpContext, MlpParams, MlpWorkspace};
+use crate::render::Aabb;
+use crate::rng::Rng;
+use crate::simd::Isa;
+use crate::train::slots::{accumulate_in_order, slot_range, split_rows, SLOTS};
+use crate::GradientMode;
+use glam::Vec3;
+use rayon::prelude::*;
+
+/// The Mixnet's default encoding: 8 levels, 2^15 entries, resolutions 16..512 (β varies
+/// smoothly: it marks where the scene changed).
+pub fn default_mixnet_grid() -> HashGridConfig {
+    HashGridConfig { levels: 8, log2_table_size: 15, base_resolution: 16, finest_resolution: 512 }
+}
+
+/// The Mixnet's geometry and kernels.
+#[derive(Clone, Debug)]
+pub struct Mixnet {
+    aabb: Aabb,
+    grid: HashGrid,
+    mlp: Mlp<32>,
+}
+
+/// Mixnet parameters.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MixnetParams {
+    /// Hash-grid table.
+    pub grid: HashGridParams,
+    /// MLP weights.
+    pub mlp: MlpParams,
+}
+
+/// Mixnet gradients, flat.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MixnetGrads {
+    /// dL/d(grid master).
+    pub grid: Vec<f32>,
+    /// dL/d(MLP weights).
+    pub mlp: Vec<f32>,
+}
+
+#[derive(Clone, Debug, Default)]
+struct Slot {
+    ctx: MlpContext,
+    ws: MlpWorkspace,
+    d_out: Vec<f32>,
+    g: Vec<f32>,
+}
+
+/// What a Mixnet forward saves.
+#[derive(Clone, Debug, Default)]
+pub struct MixnetContext {
+    n: usize,
+    unit: Vec<[f32; 3]>,
+    enc: Vec<f32>,
+    d_enc: Vec<f32>,
+    slots: Vec<Slot>,
+}
+
+impl Mixnet {
+    /// A Mixnet over `aabb` with encoding `grid`.
+    pub fn new(aabb: Aabb, grid: HashGridConfig) -> Mixnet {
+        let grid = HashGrid::new(grid);
+        let mlp = Mlp::new(MlpConfig {
+            input: grid.features(),
+            output: 1,
+            hidden_layers: 1,
+            hidden_activation: Activation::Relu,
+            output_activation: Activation::None,
+        });
+        Mixnet { aabb, grid, mlp }
+    }
+
+    /// The hash grid.
+    pub fn grid(&self) -> &HashGrid {
+        &self.grid
+    }
+
+    /// The MLP.
+    pub fn mlp(&self) -> &Mlp<32> {
+        &self.mlp
+    }
+
+    /// Fresh parameters. The output layer starts at zero, so β = ½ everywhere at first.
+    pub fn init_params(&self, rng: &mut Rng) -> MixnetParams {
+        let grid = HashGridParams::init(&self.grid, rng);
+        let mut mlp = self.mlp.init_params(rng);
+        let last = *self.mlp.layers().last().expect("one output layer");
+        mlp.weights_mut()[last.offset..last.offset + last.k * last.o].fill(0.0);
+        mlp.sync();
+        MixnetParams { grid, mlp }
+    }
+
+    /// Zeroed gradients.
+    pub fn zero_grads(&self) -> MixnetGrads {
+        MixnetGrads { grid: vec![0.0; self.grid.n_params()], mlp: vec![0.0; self.mlp.n_params()] }
+    }
+
+    /// Logits `m` (β = sigmoid(m)) at world `positions`, saving what backward needs.
+    pub fn forward(
+        &self,
+        isa: Isa,
+        params: &MixnetParams,
+        positions: &[Vec3],
+        logits: &mut [f32],
+        ctx: &mut MixnetContext,
+    ) {
+        let n = positions.len();
+        assert_eq!(logits.len(), n, "mixnet: output length differs from the sample count");
+        ctx.n = n;
+        ctx.unit.clear();
+        ctx.unit.extend(positions.iter().map(|&p| self.aabb.to_unit(p).to_array()));
+        let w = self.grid.output_width();
+        ctx.enc.resize(n * w, 0.0);
+        self.grid.forward_par(isa, &params.grid.table, &ctx.unit, &mut ctx.enc);
+        ctx.slots.resize_with(SLOTS, Slot::default);
+        let (enc, so) = (&ctx.enc, self.mlp.output_stride());
+        let parts = split_rows(logits, n, 1);
+        ctx.slots.par_iter_mut().zip(parts).enumerate().for_each(|(s, (slot, out))| {
+            let r = slot_range(n, s);
+            self.mlp.forward(isa, &params.mlp, &enc[r.start * w..r.end * w], r.len(), &mut slot.ctx);
+            for (o, row) in out.iter_mut().zip(slot.ctx.output().chunks(so)) {
+                *o = row[0];
+            }
+        });
+    }
+
+    /// Back-propagates dL/dm of the last forward into `grads` per `mode`.
+    pub fn backward(
+        &self,
+        isa: Isa,
+        params: &MixnetParams,
+        ctx: &mut MixnetContext,
+        d_logits: &[f32],
+        grads: &mut MixnetGrads,
+        mode: GradientMode,
+    ) {
+        let n = ctx.n;
+        assert_eq!(d_logits.len(), n, "mixnet: gradient length differs from the sample count");
+        if mode == GradientMode::Ignore {
+            return;
+        }
+        let (w, so) = (self.grid.output_width(), self.mlp.output_stride());
+        ctx.d_enc.resize(n * w, 0.0);
+        let enc = &ctx.enc;
+        let parts = split_rows(&mut ctx.d_enc, n, w);
+        ctx.slots.par_iter_mut().zip(parts).enumerate().for_each(|(s, (slot, d_enc))| {
+            let r = slot_range(n, s);
+            slot.d_out.clear();
+            slot.d_out.resize(r.len() * so, 0.0);
+            for (row, &d) in slot.d_out.chunks_mut(so).zip(&d_logits[r.clone()]) {
+                row[0] = d;
+            }
+            slot.g.clear();
+            slot.g.resize(self.mlp.n_params(), 0.0);
+            self.mlp.backward(
+                isa,
+                &params.mlp,
+                &enc[r.start * w..r.end * w],
+                &slot.ctx,
+                &slot.d_out,
+                &mut slot.g,
+                GradientMode::Overwrite,
+                Some(d_enc),
+                &mut slot.ws,
+            );
+        });
+        if mode == GradientMode::Overwrite {
+            grads.mlp.fill(0.0);
+        }
+        accumulate_in_order(ctx.slots.iter().map(|s| s.g.as_slice()), &mut grads.mlp);
+        self.grid.backward_params(isa, &ctx.unit, &ctx.d_enc, &mut grads.grid, mode);
+    }
+}

@@ -1,0 +1,248 @@
+//! The residual field (paper Eqs. 5–6, DESIGN §2.3): a frozen background [`Nerf`] (evaluated,
+//! never differentiated), a residual NeRF field and a [`Mixnet`], combined per sample by
+//! [`super::mix`]. Forward gives activated σ and colour (what compositing needs); backward
+//! takes dL/dσ and dL/dc and fills gradients of the residual and the Mixnet only.
+
+use super::mix::{mix_backward, mix_forward, mixed_log_density, MixInput, MixKind, MixOutput};
+use super::mixnet::{Mixnet, MixnetContext, MixnetGrads, MixnetParams};
+use super::{FieldContext, Nerf, NerfConfig, NerfField, NerfGrads, NerfParams};
+use crate::encoding::HashGridConfig;
+use crate::rng::Rng;
+use crate::simd::Isa;
+use crate::GradientMode;
+use glam::Vec3;
+
+/// A residual model's architecture: the residual NeRF's config (same scene box as the
+/// background), how the two mix, and the Mixnet's encoding.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ResidualConfig {
+    /// Residual NeRF (its `aabb` must be the background's).
+    pub residual: NerfConfig,
+    /// Mixing rule. Defaults to a Mixnet with raw density mixing.
+    pub kind: MixKind,
+    /// Mixnet encoding. Defaults to [`super::mixnet::default_mixnet_grid`].
+    pub mixnet_grid: HashGridConfig,
+}
+
+/// The field: frozen background, residual, Mixnet.
+#[derive(Clone, Debug)]
+pub struct ResidualField {
+    /// The frozen background (its parameters are never changed here).
+    pub background: Nerf,
+    residual: NerfField,
+    mixnet: Mixnet,
+    kind: MixKind,
+}
+
+/// Trainable parameters of a residual model.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ResidualParams {
+    /// Residual NeRF.
+    pub residual: NerfParams,
+    /// Mixnet (unused by [`MixKind::Sum`]).
+    pub mixnet: MixnetParams,
+}
+
+/// Gradients of [`ResidualParams`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct ResidualGrads {
+    /// Of the residual NeRF.
+    pub residual: NerfGrads,
+    /// Of the Mixnet.
+    pub mixnet: MixnetGrads,
+}
+
+/// What a residual forward saves.
+#[derive(Clone, Debug, Default)]
+pub struct ResidualContext {
+    bg: FieldContext,
+    res: FieldContext,
+    mix: MixnetContext,
+    inputs: Vec<MixInput>,
+    outputs: Vec<MixOutput>,
+    raw: Vec<f32>,
+    rgb_raw: Vec<[f32; 3]>,
+    logits: Vec<f32>,
+    d_raw: Vec<f32>,
+    d_rgb_raw: Vec<[f32; 3]>,
+    d_logits: Vec<f32>,
+    s_res: Vec<f32>,
+}
+
+impl ResidualField {
+    /// A residual field on top of `background`. Panics when the boxes differ (callers check
+    /// and report that as an input error first).
+    pub fn new(background: Nerf, config: ResidualConfig) -> ResidualField {
+        assert_eq!(
+            background.field.config().aabb,
+            config.residual.aabb,
+            "residual: scene box differs from the background's"
+        );
+        let mixnet = Mixnet::new(config.residual.aabb, config.mixnet_grid);
+        ResidualField { background, residual: NerfField::new(config.residual), mixnet, kind: config.kind }
+    }
+
+    /// The mixing rule.
+    pub fn kind(&self) -> MixKind {
+        self.kind
+    }
+
+    /// The residual NeRF field.
+    pub fn residual(&self) -> &NerfField {
+        &self.residual
+    }
+
+    /// The Mixnet.
+    pub fn mixnet(&self) -> &Mixnet {
+        &self.mixnet
+    }
+
+    /// Fresh trainable parameters.
+    pub fn init_params(&self, rng: &mut Rng) -> ResidualParams {
+        ResidualParams { residual: self.residual.init_params(rng), mixnet: self.mixnet.init_params(rng) }
+    }
+
+    /// Zeroed gradients.
+    pub fn zero_grads(&self) -> ResidualGrads {
+        ResidualGrads { residual: self.residual.zero_grads(), mixnet: self.mixnet.zero_grads() }
+    }
+
+    /// Evaluates background, residual and Mixnet at the samples and mixes them.
+    fn evaluate(
+        &self,
+        isa: Isa,
+        params: &ResidualParams,
+        positions: &[Vec3],
+        dirs: &[Vec3],
+        ctx: &mut ResidualContext,
+    ) {
+        let n = positions.len();
+        let bg = &self.background;
+        ctx.raw.resize(n, 0.0);
+        ctx.rgb_raw.resize(n, [0.0; 3]);
+        ctx.logits.clear();
+        ctx.logits.resize(n, 0.0);
+        ctx.inputs.clear();
+        if n == 0 {
+            ctx.outputs.clear();
+            return;
+        }
+        bg.field.forward(isa, &bg.params, positions, dirs, &mut ctx.raw, &mut ctx.rgb_raw, &mut ctx.bg);
+        ctx.inputs.extend(ctx.raw.iter().zip(&ctx.rgb_raw).map(|(&s_bg, &c_bg)| MixInput {
+            s_bg,
+            c_bg,
+            s_res: 0.0,
+            c_res: [0.0; 3],
+            m: 0.0,
+        }));
+        self.residual.forward(isa, &params.residual, positions, dirs, &mut ctx.raw, &mut ctx.rgb_raw, &mut ctx.res);
+        if matches!(self.kind, MixKind::Mixnet(_)) {
+            self.mixnet.forward(isa, &params.mixnet, positions, &mut ctx.logits, &mut ctx.mix);
+        }
+        for (i, x) in ctx.inputs.iter_mut().enumerate() {
+            (x.s_res, x.c_res, x.m) = (ctx.raw[i], ctx.rgb_raw[i], ctx.logits[i]);
+        }
+        ctx.outputs.clear();
+        ctx.outputs.extend(ctx.inputs.iter().map(|x| mix_forward(self.kind, x)));
+    }
+
+    /// Mixed density σ only (background and residual density networks and the Mixnet; no
+    /// colour): for occupancy updates, pruning and depth-only rendering.
+    pub fn density(
+        &self,
+        isa: Isa,
+        params: &ResidualParams,
+        positions: &[Vec3],
+        sigma: &mut [f32],
+        ctx: &mut ResidualContext,
+    ) {
+        let n = positions.len();
+        assert_eq!(sigma.len(), n, "residual: output length differs from the sample count");
+        if n == 0 {
+            return;
+        }
+        let bg = &self.background;
+        ctx.raw.resize(n, 0.0);
+        ctx.s_res.resize(n, 0.0);
+        ctx.logits.clear();
+        ctx.logits.resize(n, 0.0);
+        bg.field.density(isa, &bg.params, positions, &mut ctx.raw, &mut ctx.bg);
+        self.residual.density(isa, &params.residual, positions, &mut ctx.s_res, &mut ctx.res);
+        if matches!(self.kind, MixKind::Mixnet(_)) {
+            self.mixnet.forward(isa, &params.mixnet, positions, &mut ctx.logits, &mut ctx.mix);
+        }
+        for i in 0..n {
+            let x =
+                MixInput { s_bg: ctx.raw[i], c_bg: [0.0; 3], s_res: ctx.s_res[i], c_res: [0.0; 3], m: ctx.logits[i] };
+            sigma[i] = mix_forward(self.kind, &x).sigma;
+        }
+    }
+
+    /// Mixed density σ and colour per sample (saving what backward needs).
+    pub fn forward(
+        &self,
+        isa: Isa,
+        params: &ResidualParams,
+        positions: &[Vec3],
+        dirs: &[Vec3],
+        sigma: &mut [f32],
+        rgb: &mut [[f32; 3]],
+        ctx: &mut ResidualContext,
+    ) {
+        assert!(
+            sigma.len() == positions.len() && rgb.len() == positions.len(),
+            "residual: buffers differ from the sample count"
+        );
+        self.evaluate(isa, params, positions, dirs, ctx);
+        for (i, o) in ctx.outputs.iter().enumerate() {
+            sigma[i] = o.sigma;
+            rgb[i] = o.rgb;
+        }
+    }
+
+    /// `ln σ` per sample of the last forward (what the threshold-depth test compares) and β.
+    pub fn log_density_and_beta(&self, ctx: &ResidualContext, log_sigma: &mut [f32], beta: &mut [f32]) {
+        for (i, (x, o)) in ctx.inputs.iter().zip(&ctx.outputs).enumerate() {
+            log_sigma[i] = mixed_log_density(self.kind, x);
+            beta[i] = o.beta;
+        }
+    }
+
+    /// Back-propagates dL/dσ and dL/dc of the last forward into the residual's and the
+    /// Mixnet's gradients (per `mode`); the background gets nothing.
+    pub fn backward(
+        &self,
+        isa: Isa,
+        params: &ResidualParams,
+        ctx: &mut ResidualContext,
+        d_sigma: &[f32],
+        d_rgb: &[[f32; 3]],
+        grads: &mut ResidualGrads,
+        mode: GradientMode,
+    ) {
+        let n = ctx.inputs.len();
+        assert!(d_sigma.len() == n && d_rgb.len() == n, "residual: gradient buffers differ from the sample count");
+        ctx.d_raw.resize(n, 0.0);
+        ctx.d_rgb_raw.resize(n, [0.0; 3]);
+        ctx.d_logits.resize(n, 0.0);
+        for i in 0..n {
+            let g = mix_backward(self.kind, &ctx.inputs[i], &ctx.outputs[i], d_sigma[i], d_rgb[i]);
+            (ctx.d_raw[i], ctx.d_rgb_raw[i], ctx.d_logits[i]) = (g.s_res, g.c_res, g.m);
+        }
+        if n == 0 {
+            return;
+        }
+        self.residual.backward(
+            isa,
+            &params.residual,
+            &mut ctx.res,
+            &ctx.d_raw,
+            &ctx.d_rgb_raw,
+            &mut grads.residual,
+            mode,
+        );
+        if matches!(self.kind, MixKind::Mixnet(_)) {
+            self.mixnet.backward(isa, &params.mixnet, &mut ctx.mix, &ctx.d_logits, &mut grads.mixnet, mode);
+        }
+    }
+}

@@ -1,0 +1,161 @@
+//! The residual field's backward (frozen background + residual NeRF + Mixnet) against central
+//! finite differences of its forward, for every mixing rule: gradients reach the residual's
+//! grid and networks and the Mixnet's grid and network.
+
+use glam::Vec3;
+use residual_nerf::encoding::HashGridConfig;
+use residual_nerf::field::mix::{DensityMix, MixKind};
+use residual_nerf::field::residual::{ResidualConfig, ResidualContext, ResidualField, ResidualParams};
+use residual_nerf::field::{Nerf, NerfConfig, NerfField};
+use residual_nerf::render::{Aabb, OccupancyConfig, OccupancyGrid};
+use residual_nerf::rng::Rng;
+use residual_nerf::simd::Isa;
+use residual_nerf::GradientMode;
+
+fn grid() -> HashGridConfig {
+    HashGridConfig { levels: 4, log2_table_size: 8, base_resolution: 4, finest_resolution: 16 }
+}
+
+fn aabb() -> Aabb {
+    Aabb { min: Vec3::splat(-1.0), max: Vec3::splat(1.0) }
+}
+
+/// A random (untrained) background with a lively table.
+fn background(rng: &mut Rng) -> Nerf {
+    let field = NerfField::new(NerfConfig { grid: grid(), aabb: aabb() });
+    let mut params = field.init_params(rng);
+    params.grid.master.iter_mut().for_each(|v| *v = rng.uniform(-1.0, 1.0));
+    params.grid.sync_mirror();
+    let occupancy = OccupancyGrid::new(aabb(), OccupancyConfig { resolution: 4, ..Default::default() });
+    Nerf { field, params, occupancy }
+}
+
+/// L = Σ a_i σ_i + Σ b_i · c_i.
+fn loss(f: &ResidualField, p: &ResidualParams, pos: &[Vec3], dirs: &[Vec3], a: &[f32], b: &[[f32; 3]]) -> f64 {
+    let n = pos.len();
+    let (mut sigma, mut rgb) = (vec![0.0; n], vec![[0.0; 3]; n]);
+    f.forward(Isa::detect(), p, pos, dirs, &mut sigma, &mut rgb, &mut ResidualContext::default());
+    (0..n).map(|i| a[i] as f64 * sigma[i] as f64 + (0..3).map(|k| (b[i][k] * rgb[i][k]) as f64).sum::<f64>()).sum()
+}
+
+/// Indices of the `k` largest-magnitude entries.
+fn top(g: &[f32], k: usize) -> Vec<usize> {
+    let mut idx: Vec<usize> = (0..g.len()).collect();
+    idx.sort_by(|&x, &y| g[y].abs().total_cmp(&g[x].abs()));
+    idx.truncate(k);
+    idx
+}
+
+#[test]
+fn residual_gradients_match_finite_differences() {
+    let isa = Isa::detect();
+    for kind in [MixKind::Mixnet(DensityMix::Activated), MixKind::Mixnet(DensityMix::Raw), MixKind::Sum] {
+        let mut rng = Rng::new(3);
+        let bg = background(&mut rng);
+        let cfg = ResidualConfig {
+            residual: NerfConfig { grid: grid(), aabb: aabb() },
+            kind,
+            mixnet_grid: HashGridConfig { levels: 2, log2_table_size: 6, base_resolution: 4, finest_resolution: 8 },
+        };
+        let f = ResidualField::new(bg.clone(), cfg);
+        let mut p = f.init_params(&mut rng);
+        p.residual.grid.master.iter_mut().for_each(|v| *v = rng.uniform(-1.0, 1.0));
+        p.residual.grid.sync_mirror();
+        p.mixnet.grid.master.iter_mut().for_each(|v| *v = rng.uniform(-1.0, 1.0));
+        p.mixnet.grid.sync_mirror();
+        // The output layer starts at zero (β = ½); give it real (unpadded) weights.
+        let last = *f.mixnet().mlp().layers().last().unwrap();
+        let w = p.mixnet.mlp.weights_mut();
+        for k in 0..last.k_real {
+            w[last.offset + k * last.o] = rng.uniform(-0.3, 0.3);
+        }
+        p.mixnet.mlp.sync();
+        let n = 6;
+        let pos: Vec<Vec3> =
+            (0..n).map(|_| Vec3::new(rng.uniform(-0.9, 0.9), rng.uniform(-0.9, 0.9), rng.uniform(-0.9, 0.9))).collect();
+        let dirs: Vec<Vec3> =
+            (0..n).map(|_| Vec3::new(rng.uniform(-1.0, 1.0), rng.uniform(-1.0, 1.0), 0.5).normalize()).collect();
+        let a: Vec<f32> = (0..n).map(|_| rng.uniform(-1.0, 1.0)).collect();
+        let b: Vec<[f32; 3]> =
+            (0..n).map(|_| [rng.uniform(-1.0, 1.0), rng.uniform(-1.0, 1.0), rng.uniform(-1.0, 1.0)]).collect();
+
+        let mut ctx = ResidualContext::default();
+        let (mut sigma, mut rgb) = (vec![0.0; n], vec![[0.0; 3]; n]);
+        f.forward(isa, &p, &pos, &dirs, &mut sigma, &mut rgb, &mut ctx);
+        let mut g = f.zero_grads();
+        f.backward(isa, &p, &mut ctx, &a, &b, &mut g, GradientMode::Overwrite);
+        assert!(f.background.params == bg.params, "the background must not change");
+
+        let check = |name: &str, analytic: f32, perturb: &dyn Fn(&mut ResidualParams, f32), h: f32| {
+            let (mut up, mut down) = (p.clone(), p.clone());
+            perturb(&mut up, h);
+            perturb(&mut down, -h);
+            let fd = (loss(&f, &up, &pos, &dirs, &a, &b) - loss(&f, &down, &pos, &dirs, &a, &b)) / (2.0 * h as f64);
+            let tol = 0.05 * fd.abs().max(analytic.abs() as f64) + 2e-3;
+            assert!(
+                (analytic as f64 - fd).abs() <= tol,
+                "{kind:?} {name}: analytic {analytic} vs finite difference {fd}"
+            );
+        };
+        for i in top(&g.residual.grid, 3) {
+            check(
+                "residual grid",
+                g.residual.grid[i],
+                &|q, h| {
+                    q.residual.grid.master[i] += h;
+                    q.residual.grid.sync_mirror();
+                },
+                0.05,
+            );
+        }
+        for i in top(&g.residual.density, 2) {
+            check(
+                "residual density weight",
+                g.residual.density[i],
+                &|q, h| {
+                    q.residual.density.weights_mut()[i] += h;
+                    q.residual.density.sync();
+                },
+                1e-3,
+            );
+        }
+        for i in top(&g.residual.colour, 2) {
+            check(
+                "residual colour weight",
+                g.residual.colour[i],
+                &|q, h| {
+                    q.residual.colour.weights_mut()[i] += h;
+                    q.residual.colour.sync();
+                },
+                1e-3,
+            );
+        }
+        if kind == MixKind::Sum {
+            assert!(g.mixnet.grid.iter().chain(&g.mixnet.mlp).all(|&v| v == 0.0), "Sum has no Mixnet");
+            continue;
+        }
+        assert!(g.mixnet.mlp.iter().any(|&v| v != 0.0), "{kind:?}: the Mixnet must be trained");
+        for i in top(&g.mixnet.grid, 2) {
+            check(
+                "mixnet grid",
+                g.mixnet.grid[i],
+                &|q, h| {
+                    q.mixnet.grid.master[i] += h;
+                    q.mixnet.grid.sync_mirror();
+                },
+                0.05,
+            );
+        }
+        for i in top(&g.mixnet.mlp, 2) {
+            check(
+                "mixnet weight",
+                g.mixnet.mlp[i],
+                &|q, h| {
+                    q.mixnet.mlp.weights_mut()[i] += h;
+                    q.mixnet.mlp.sync();
+                },
+                1e-3,
+            );
+        }
+    }
+}
