@@ -11,8 +11,10 @@ pub const USAGE: &str = "usage: rnerf <command> [options]
 
 commands:
   train  --data DIR --out MODEL [--steps N] [--rays N] [--log2t N] [--seed S] [--threads N]
-         [--split NAME] [--csv FILE]
-         train a NeRF on DIR's transforms_<split>.json (default split: train)
+         [--split NAME] [--csv FILE] [--background BG_MODEL [--mix mixnet|sum]
+         [--density-mix raw|activated]]
+         train a NeRF on DIR's transforms_<split>.json (default split: train); with --background,
+         a Residual-NeRF (residual + Mixnet over the frozen background; --mix sum: Residual-NeRF-S)
   render --model MODEL --data DIR --out DIR [--split NAME] [--depth threshold|expected]
          [--m M | --m-raw S] [--threads N]
          depth (EXR metres, 16-bit PNG mm, .npy metres, colourised PNG) and RGB of the split's views
@@ -65,6 +67,10 @@ pub enum Command {
         threads: Option<usize>,
         /// Metrics log (`--csv`).
         csv: Option<PathBuf>,
+        /// Frozen background model: train a residual model (`--background`).
+        background: Option<PathBuf>,
+        /// How background and residual mix (`--mix`, `--density-mix`); default Mixnet, raw.
+        mix: Option<crate::field::mix::MixKind>,
     },
     /// `rnerf render`.
     Render {
@@ -157,7 +163,20 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
     let mut f = Flags::default();
     let allowed: &[&str] = match command.as_str() {
         "help" => return Ok(Command::Help),
-        "train" => &["data", "out", "split", "steps", "rays", "log2t", "seed", "threads", "csv"],
+        "train" => &[
+            "data",
+            "out",
+            "split",
+            "steps",
+            "rays",
+            "log2t",
+            "seed",
+            "threads",
+            "csv",
+            "background",
+            "mix",
+            "density-mix",
+        ],
         "render" => &["model", "data", "out", "split", "depth", "m", "m-raw", "threads"],
         "eval" => &["model", "data", "split", "depth", "m", "m-raw", "crop", "limit", "json", "threads"],
         "demo" => &["steps", "seed", "threads"],
@@ -187,6 +206,8 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             seed: f.seed,
             threads,
             csv: f.csv.clone(),
+            background: f.background.clone(),
+            mix: f.mix_kind()?,
         },
         "render" => Command::Render {
             model: f.need_path("model", &command)?,
@@ -231,6 +252,9 @@ struct Flags {
     crop: Option<CropRule>,
     limit: Option<f32>,
     json: bool,
+    background: Option<PathBuf>,
+    mix: Option<String>,
+    density_mix: Option<String>,
 }
 
 impl Flags {
@@ -241,6 +265,21 @@ impl Flags {
             "out" => self.out = Some(path(p, name)?),
             "model" => self.model = Some(path(p, name)?),
             "csv" => self.csv = Some(path(p, name)?),
+            "background" => self.background = Some(path(p, name)?),
+            "mix" => {
+                let s = text(p, name)?;
+                if s != "mixnet" && s != "sum" {
+                    return Err(err(format!("--mix: '{s}' is not 'mixnet' or 'sum'")));
+                }
+                self.mix = Some(s);
+            }
+            "density-mix" => {
+                let s = text(p, name)?;
+                if s != "raw" && s != "activated" {
+                    return Err(err(format!("--density-mix: '{s}' is not 'raw' or 'activated'")));
+                }
+                self.density_mix = Some(s);
+            }
             "split" => {
                 let s = text(p, name)?;
                 if s.is_empty() || !s.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') {
@@ -299,6 +338,25 @@ impl Flags {
             _ => &self.model,
         };
         v.clone().ok_or_else(|| err(format!("{command}: --{name} is required (try 'rnerf help')")))
+    }
+
+    fn mix_kind(&self) -> Result<Option<crate::field::mix::MixKind>, CliError> {
+        use crate::field::mix::{DensityMix, MixKind};
+        if self.background.is_none() && (self.mix.is_some() || self.density_mix.is_some()) {
+            return Err(err("--mix / --density-mix need --background (they configure a residual model)"));
+        }
+        let density = match self.density_mix.as_deref() {
+            Some("activated") => DensityMix::Activated,
+            _ => DensityMix::Raw,
+        };
+        Ok(match self.mix.as_deref() {
+            Some("sum") if self.density_mix.is_some() => {
+                return Err(err("--density-mix applies to --mix mixnet, not sum"));
+            }
+            Some("sum") => Some(MixKind::Sum),
+            _ if self.background.is_some() => Some(MixKind::Mixnet(density)),
+            _ => None,
+        })
     }
 
     fn depth(&self) -> Result<DepthChoice, CliError> {
@@ -399,6 +457,9 @@ mod tests {
             ("eval --model m --data d --crop huge", "--crop: 'huge'"),
             ("render --model m --data d --out o --depth median", "--depth: 'median'"),
             ("train --data d --out m --split ../x", "--split"),
+            ("train --data d --out m --mix sum", "need --background"),
+            ("train --data d --out m --background b --mix sum --density-mix raw", "applies to --mix mixnet"),
+            ("train --data d --out m --background b --mix blend", "--mix: 'blend'"),
             ("trian", "unknown command 'trian'"),
             ("--json", "expected a command"),
         ] {

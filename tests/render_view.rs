@@ -42,14 +42,14 @@ fn segmented_rendering_equals_whole_ray_compositing() {
             let (mut rgb, mut ez, mut tz, mut dz) = (vec![[0.0; 3]; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
             renderer.full(
                 isa,
-                &nerf,
+                &(&nerf).into(),
                 k,
                 &v.pose,
                 cfg.background,
                 m,
-                FullOutputs { rgb: &mut rgb, expected_z: &mut ez, threshold_z: &mut tz },
+                FullOutputs { rgb: &mut rgb, expected_z: &mut ez, threshold_z: &mut tz, beta: &mut [] },
             );
-            renderer.depth(isa, &nerf, k, &v.pose, m, &mut dz);
+            renderer.depth(isa, &(&nerf).into(), k, &v.pose, m, &mut dz);
             let mut hits = 0;
             for p in 0..n {
                 let ray = pixel_ray(k, &v.pose, p as u32 % k.width, p as u32 / k.width);

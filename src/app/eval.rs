@@ -4,10 +4,11 @@ use super::Progress;
 use crate::cli::DepthChoice;
 use crate::data::{Dataset, LoadOptions};
 use crate::eval::{crop_box, mse, psnr, CropRule, DepthErrors};
-use crate::field::Nerf;
-use crate::io::load_nerf;
+use crate::io::{load_model, LoadedModel};
+use crate::render::view::Scene;
 use crate::render::{FullOutputs, ViewRenderer};
 use crate::simd::Isa;
+use crate::train::model::Model;
 use serde_json::json;
 use std::path::Path;
 
@@ -43,9 +44,9 @@ impl EvalReport {
 }
 
 /// Renders every view of `data` and scores it.
-pub fn evaluate(
+pub fn evaluate<M: Model>(
     isa: Isa,
-    nerf: &Nerf,
+    scene: &Scene<'_, M>,
     data: &Dataset,
     depth: DepthChoice,
     crop: CropRule,
@@ -57,7 +58,7 @@ pub fn evaluate(
         DepthChoice::Threshold(m) => m,
         DepthChoice::Expected => crate::render::DensityThreshold::Sigma(crate::cli::DEFAULT_M),
     };
-    let mut renderer = ViewRenderer::new();
+    let mut renderer = ViewRenderer::<M>::new();
     let mut errors = DepthErrors::default();
     let (mut psnr_sum, mut with_depth) = (0.0, 0);
     let (mut rgb, mut expected, mut threshold) = (Vec::new(), Vec::new(), Vec::new());
@@ -67,8 +68,8 @@ pub fn evaluate(
         rgb.resize(n, [0.0; 3]);
         expected.resize(n, 0.0);
         threshold.resize(n, 0.0);
-        let out = FullOutputs { rgb: &mut rgb, expected_z: &mut expected, threshold_z: &mut threshold };
-        renderer.full(isa, nerf, k, &v.pose, background, m, out);
+        let out = FullOutputs { rgb: &mut rgb, expected_z: &mut expected, threshold_z: &mut threshold, beta: &mut [] };
+        renderer.full(isa, scene, k, &v.pose, background, m, out);
         psnr_sum += psnr(mse(&rgb, &v.rgb));
         if let Some(gt) = &f.depth {
             let pred = if depth == DepthChoice::Expected { &expected } else { &threshold };
@@ -94,13 +95,16 @@ pub(super) fn run(
     limit: Option<f32>,
     json: bool,
 ) -> Result<(), String> {
-    let nerf = load_nerf(model)?;
+    let model = load_model(model)?;
     let opts = LoadOptions::default();
     let data = Dataset::load(data_dir, split, &opts).map_err(|e| e.to_string())?;
     let mut progress = Progress::new("eval", data.views.len() as u64);
-    let report = evaluate(Isa::detect(), &nerf, &data, depth, crop, limit, opts.background, |i| {
-        progress.update(i as u64, "views rendered")
-    });
+    let tick = |i: usize| progress.update(i as u64, "views rendered");
+    let isa = Isa::detect();
+    let report = match &model {
+        LoadedModel::Nerf(n) => evaluate(isa, &Scene::from(&**n), &data, depth, crop, limit, opts.background, tick),
+        LoadedModel::Residual(r) => evaluate(isa, &r.scene(), &data, depth, crop, limit, opts.background, tick),
+    };
     if json {
         println!("{}", report.to_json(depth));
     } else {

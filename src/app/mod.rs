@@ -20,9 +20,9 @@ use crate::simd::Isa;
 pub fn run(command: Command) -> Result<(), String> {
     match command {
         Command::Help => println!("{}", crate::cli::USAGE),
-        Command::Train { data, out, split, steps, rays, log2t, seed, threads, csv } => {
+        Command::Train { data, out, split, steps, rays, log2t, seed, threads, csv, background, mix } => {
             set_threads(threads)?;
-            train::run(&train::TrainArgs { data, out, split, steps, rays, log2t, seed, csv })?;
+            train::run(&train::TrainArgs { data, out, split, steps, rays, log2t, seed, csv, background, mix })?;
         }
         Command::Render { model, data, out, split, depth, threads } => {
             set_threads(threads)?;

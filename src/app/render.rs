@@ -4,32 +4,50 @@
 use super::Progress;
 use crate::cli::DepthChoice;
 use crate::data::{Dataset, LoadOptions};
-use crate::io::export;
-use crate::io::load_nerf;
+use crate::io::{export, load_model, LoadedModel};
+use crate::render::view::Scene;
 use crate::render::{DensityThreshold, FullOutputs, ViewRenderer};
 use crate::simd::Isa;
+use crate::train::model::Model;
 use std::path::Path;
 
 pub(super) fn run(model: &Path, data_dir: &Path, split: &str, depth: DepthChoice, out: &Path) -> Result<(), String> {
     if !out.is_dir() {
         return Err(format!("{}: --out: output directory does not exist", out.display()));
     }
-    let nerf = load_nerf(model)?;
+    let model = load_model(model)?;
     let opts = LoadOptions { ground_truth: false, ..Default::default() };
     let data = Dataset::load(data_dir, split, &opts).map_err(|e| e.to_string())?;
+    match &model {
+        LoadedModel::Nerf(n) => render_all(&Scene::from(&**n), &data, depth, out, opts.background, false),
+        LoadedModel::Residual(r) => render_all(&r.scene(), &data, depth, out, opts.background, true),
+    }
+}
+
+/// Renders and writes every view; `beta`: also `<name>_beta.png` (where the scene changed).
+fn render_all<M: Model>(
+    scene: &Scene<'_, M>,
+    data: &Dataset,
+    depth: DepthChoice,
+    out: &Path,
+    background: [f32; 3],
+    beta: bool,
+) -> Result<(), String> {
     let isa = Isa::detect();
     let m = match depth {
         DepthChoice::Threshold(m) => m,
         DepthChoice::Expected => DensityThreshold::Sigma(crate::cli::DEFAULT_M),
     };
-    let mut renderer = ViewRenderer::new();
+    let mut renderer = ViewRenderer::<M>::new();
     let mut progress = Progress::new("render", data.views.len() as u64);
     for (i, (v, f)) in data.views.iter().zip(&data.frames).enumerate() {
         let k = &v.intrinsics;
         let n = (k.width * k.height) as usize;
         let (mut rgb, mut expected, mut threshold) = (vec![[0.0; 3]; n], vec![0.0; n], vec![0.0; n]);
-        let outputs = FullOutputs { rgb: &mut rgb, expected_z: &mut expected, threshold_z: &mut threshold };
-        renderer.full(isa, &nerf, k, &v.pose, opts.background, m, outputs);
+        let mut b = if beta { vec![0.0; n] } else { Vec::new() };
+        let outputs =
+            FullOutputs { rgb: &mut rgb, expected_z: &mut expected, threshold_z: &mut threshold, beta: &mut b };
+        renderer.full(isa, scene, k, &v.pose, background, m, outputs);
         let z = if depth == DepthChoice::Expected { &expected } else { &threshold };
         let stem =
             f.image_path.file_stem().map_or_else(|| format!("frame_{}", f.index), |s| s.to_string_lossy().into_owned());
@@ -41,6 +59,10 @@ pub(super) fn run(model: &Path, data_dir: &Path, split: &str, depth: DepthChoice
         export::write(&file("_depth.npy"), Ok(export::depth_npy_bytes(z, w, h)))?;
         export::write(&file("_depth_vis.png"), export::depth_vis_png_bytes(z, w, h, near, far))?;
         export::write(&file("_rgb.png"), export::rgb_png_bytes(&rgb, w, h))?;
+        if beta {
+            let grey: Vec<[f32; 3]> = b.iter().map(|&x| [x; 3]).collect();
+            export::write(&file("_beta.png"), export::rgb_png_bytes(&grey, w, h))?;
+        }
         export::write(&file("_camera.json"), Ok(export::camera_json(k, &v.pose).into_bytes()))?;
         progress.update(i as u64 + 1, &format!("{stem}: {near:.2}..{far:.2} m"));
     }

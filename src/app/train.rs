@@ -3,10 +3,13 @@
 use super::{check_output_file, Progress};
 use crate::data::{AabbSource, Dataset, LoadOptions};
 use crate::encoding::HashGridConfig;
+use crate::field::mix::{DensityMix, MixKind};
+use crate::field::mixnet::default_mixnet_grid;
+use crate::field::residual::ResidualConfig;
 use crate::field::NerfConfig;
-use crate::io::{save_nerf, write_atomic};
+use crate::io::{load_model, save_nerf, save_residual, write_atomic, LoadedModel};
 use crate::simd::Isa;
-use crate::train::trainer::{train_nerf, TrainConfig};
+use crate::train::trainer::{train_nerf, train_residual, StepStats, TrainConfig};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
@@ -28,6 +31,8 @@ pub struct TrainArgs {
     pub log2t: Option<u32>,
     pub seed: Option<u64>,
     pub csv: Option<PathBuf>,
+    pub background: Option<PathBuf>,
+    pub mix: Option<MixKind>,
 }
 
 /// The trainer settings `rnerf train` uses for `steps` steps (its defaults, documented in the
@@ -42,8 +47,41 @@ pub(super) fn run(a: &TrainArgs) -> Result<(), String> {
     if let Some(csv) = &a.csv {
         check_output_file(csv, "--csv")?;
     }
+    // The background first: a wrong one must stop us before any work.
+    let background = match &a.background {
+        None => None,
+        Some(p) => match load_model(p).map_err(|e| format!("--background: {e}"))? {
+            LoadedModel::Nerf(n) => Some(*n),
+            LoadedModel::Residual(_) => {
+                return Err(format!(
+                    "{}: --background: a residual model; expected a plain NeRF of the empty workspace",
+                    p.display()
+                ))
+            }
+        },
+    };
     let opts = LoadOptions { ground_truth: false, ..Default::default() };
-    let data = Dataset::load(&a.data, &a.split, &opts).map_err(|e| e.to_string())?;
+    let mut data = Dataset::load(&a.data, &a.split, &opts).map_err(|e| e.to_string())?;
+    if let (Some(bg), Some(p)) = (&background, &a.background) {
+        let b = bg.field.config().aabb;
+        match data.aabb_source {
+            AabbSource::File
+                if (data.aabb.min - b.min).abs().max_element() > 1e-5
+                    || (data.aabb.max - b.max).abs().max_element() > 1e-5 =>
+            {
+                return Err(format!(
+                    "{}: field 'aabb' {:?}..{:?} differs from the background model {}'s scene box {:?}..{:?}",
+                    data.json.display(),
+                    data.aabb.min.to_array(),
+                    data.aabb.max.to_array(),
+                    p.display(),
+                    b.min.to_array(),
+                    b.max.to_array()
+                ));
+            }
+            _ => data.aabb = b,
+        }
+    }
     let (w, h) = (data.views[0].intrinsics.width, data.views[0].intrinsics.height);
     let source = match data.aabb_source {
         AabbSource::File => "from the json's 'aabb'",
@@ -76,7 +114,7 @@ pub(super) fn run(a: &TrainArgs) -> Result<(), String> {
     );
     let mut progress = Progress::new("train", cfg.steps as u64);
     let mut csv = String::from("step,seconds,loss,psnr,samples_per_ray,marched_per_ray,occupancy,lr\n");
-    let nerf = train_nerf(isa, &data.views, field, &cfg, 10, |s| {
+    let log = |s: StepStats| {
         let psnr = -10.0 * (s.loss as f64).log10();
         let rays_per_s = (s.step + 1) as f64 * cfg.rays_per_step as f64 / s.seconds;
         let _ = writeln!(
@@ -100,16 +138,30 @@ pub(super) fn run(a: &TrainArgs) -> Result<(), String> {
                 s.marched_per_ray
             ),
         );
-    });
-    let extra = [
+    };
+    let mut extra = vec![
         ("train_steps", cfg.steps.to_string()),
         ("train_rays_per_step", cfg.rays_per_step.to_string()),
         ("train_seed", cfg.seed.to_string()),
         ("train_data", a.data.display().to_string()),
         ("train_split", a.split.clone()),
-        ("train_seconds", format!("{:.1}", progress.seconds())),
     ];
-    save_nerf(&a.out, &nerf, &extra)?;
+    match background {
+        None => {
+            let nerf = train_nerf(isa, &data.views, field, &cfg, 10, log);
+            extra.push(("train_seconds", format!("{:.1}", progress.seconds())));
+            save_nerf(&a.out, &nerf, &extra)?;
+        }
+        Some(bg) => {
+            let kind = a.mix.unwrap_or(MixKind::Mixnet(DensityMix::Raw));
+            eprintln!("rnerf train: residual model over {} ({kind:?})", a.background.as_ref().unwrap().display());
+            let config = ResidualConfig { residual: field, kind, mixnet_grid: default_mixnet_grid() };
+            let model = train_residual(isa, bg, &data.views, config, &cfg, 10, log);
+            extra.push(("train_seconds", format!("{:.1}", progress.seconds())));
+            extra.push(("background_file", a.background.as_ref().unwrap().display().to_string()));
+            save_residual(&a.out, &model, &extra)?;
+        }
+    }
     if let Some(path) = &a.csv {
         write_atomic(path, csv.as_bytes())?;
     }

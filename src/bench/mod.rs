@@ -395,7 +395,7 @@ pub fn run(opts: &BenchOptions) -> BenchReport {
     let pose = scene.views[0].pose;
     let mut renderer = ViewRenderer::new();
     let mut z = vec![0f32; 200 * 200];
-    let v = time_reps(reps, || renderer.depth(isa, &nerf, &k, &pose, DensityThreshold::Sigma(3.0), &mut z));
+    let v = time_reps(reps, || renderer.depth(isa, &(&nerf).into(), &k, &pose, DensityThreshold::Sigma(3.0), &mut z));
     push("render_depth_ms_200", "ms", v.iter().map(|s| s * 1e3).collect());
 
     let mut report =

@@ -87,6 +87,11 @@ impl Mixnet {
         &self.mlp
     }
 
+    /// MLP parameters from a flat weight buffer.
+    pub fn mlp_params_from(&self, weights: Vec<f32>) -> MlpParams {
+        MlpParams::new(&self.mlp, weights)
+    }
+
     /// Fresh parameters. The output layer starts at zero, so β = ½ everywhere at first.
     pub fn init_params(&self, rng: &mut Rng) -> MixnetParams {
         let grid = HashGridParams::init(&self.grid, rng);

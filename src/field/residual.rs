@@ -3,7 +3,7 @@
 //! [`super::mix`]. Forward gives activated σ and colour (what compositing needs); backward
 //! takes dL/dσ and dL/dc and fills gradients of the residual and the Mixnet only.
 
-use super::mix::{mix_backward, mix_forward, mixed_log_density, MixInput, MixKind, MixOutput};
+use super::mix::{mix_backward, mix_forward, MixInput, MixKind, MixOutput};
 use super::mixnet::{Mixnet, MixnetContext, MixnetGrads, MixnetParams};
 use super::{FieldContext, Nerf, NerfConfig, NerfField, NerfGrads, NerfParams};
 use crate::encoding::HashGridConfig;
@@ -50,6 +50,25 @@ pub struct ResidualGrads {
     pub residual: NerfGrads,
     /// Of the Mixnet.
     pub mixnet: MixnetGrads,
+}
+
+/// A trained residual model: the field (with its frozen background), the trained parameters,
+/// and the occupancy grid of the **mixed** field (DESIGN §2.3).
+#[derive(Clone, Debug)]
+pub struct ResidualModel {
+    /// Background + residual + Mixnet.
+    pub field: ResidualField,
+    /// Residual and Mixnet parameters.
+    pub params: ResidualParams,
+    /// Occupancy of the mixed field.
+    pub occupancy: crate::render::OccupancyGrid,
+}
+
+impl ResidualModel {
+    /// The model as a renderable scene.
+    pub fn scene(&self) -> crate::render::view::Scene<'_, ResidualField> {
+        crate::render::view::Scene { model: &self.field, params: &self.params, occupancy: &self.occupancy }
+    }
 }
 
 /// What a residual forward saves.
@@ -200,11 +219,11 @@ impl ResidualField {
         }
     }
 
-    /// `ln σ` per sample of the last forward (what the threshold-depth test compares) and β.
-    pub fn log_density_and_beta(&self, ctx: &ResidualContext, log_sigma: &mut [f32], beta: &mut [f32]) {
-        for (i, (x, o)) in ctx.inputs.iter().zip(&ctx.outputs).enumerate() {
-            log_sigma[i] = mixed_log_density(self.kind, x);
-            beta[i] = o.beta;
+    /// β per sample of the last forward (empty for [`MixKind::Sum`]).
+    pub fn betas(&self, ctx: &ResidualContext, out: &mut Vec<f32>) {
+        out.clear();
+        if matches!(self.kind, MixKind::Mixnet(_)) {
+            out.extend(ctx.outputs.iter().map(|o| o.beta));
         }
     }
 

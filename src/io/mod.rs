@@ -6,4 +6,4 @@ pub mod export;
 pub mod model;
 
 pub use atomic::write_atomic;
-pub use model::{load_nerf, nerf_from_bytes, save_nerf};
+pub use model::{load_model, load_nerf, model_from_bytes, nerf_from_bytes, save_nerf, save_residual, LoadedModel};

@@ -17,6 +17,9 @@
 
 use super::atomic::write_atomic;
 use crate::encoding::{HashGridConfig, HashGridParams};
+use crate::field::mix::{DensityMix, MixKind};
+use crate::field::mixnet::MixnetParams;
+use crate::field::residual::{ResidualConfig, ResidualField, ResidualModel, ResidualParams};
 use crate::field::{NerfConfig, NerfField, NerfParams};
 use crate::mlp::LayerShape;
 use crate::render::{Aabb, OccupancyConfig, OccupancyGrid};
@@ -68,23 +71,35 @@ impl ModelWriter {
 
     /// Adds a NeRF's tensors and config under `prefix`.
     pub fn nerf(&mut self, prefix: &str, nerf: &Nerf) -> Result<(), String> {
-        let cfg = nerf.field.config();
-        self.meta(&format!("{prefix}config"), &config_json(cfg, nerf.occupancy.config()).to_string());
-        let entries = nerf.params.grid.master.len() / 2;
-        self.tensor(&format!("{prefix}grid.params"), vec![entries, 2], &nerf.params.grid.master)?;
-        for (name, params, layers) in [
-            ("density", &nerf.params.density, nerf.field.density_layers()),
-            ("colour", &nerf.params.colour, nerf.field.colour_layers()),
-        ] {
-            for (l, s) in layers.iter().enumerate() {
-                let w = params.weights();
-                let t: Vec<f32> =
-                    (0..s.o_real).flat_map(|j| (0..s.k_real).map(move |k| w[s.offset + k * s.o + j])).collect();
-                self.tensor(&format!("{prefix}{name}.{l}.weight"), vec![s.o_real, s.k_real], &t)?;
-            }
+        self.nerf_parts(prefix, &nerf.field, &nerf.params, &nerf.occupancy)
+    }
+
+    /// Adds a NeRF field's tensors and config (with `occupancy`) under `prefix`.
+    pub fn nerf_parts(
+        &mut self,
+        prefix: &str,
+        field: &NerfField,
+        params: &NerfParams,
+        occupancy: &OccupancyGrid,
+    ) -> Result<(), String> {
+        let cfg = field.config();
+        self.meta(&format!("{prefix}config"), &config_json(cfg, occupancy.config()).to_string());
+        let entries = params.grid.master.len() / 2;
+        self.tensor(&format!("{prefix}grid.params"), vec![entries, 2], &params.grid.master)?;
+        self.mlp(&format!("{prefix}density"), params.density.weights(), field.density_layers())?;
+        self.mlp(&format!("{prefix}colour"), params.colour.weights(), field.colour_layers())?;
+        let r = occupancy.config().resolution as usize;
+        self.tensor(&format!("{prefix}occupancy.values"), vec![r, r, r], occupancy.values())?;
+        Ok(())
+    }
+
+    /// Adds an MLP's layers as `{name}.{l}.weight` `[out, in]` (no padding).
+    pub fn mlp(&mut self, name: &str, w: &[f32], layers: &[LayerShape]) -> Result<(), String> {
+        for (l, s) in layers.iter().enumerate() {
+            let t: Vec<f32> =
+                (0..s.o_real).flat_map(|j| (0..s.k_real).map(move |k| w[s.offset + k * s.o + j])).collect();
+            self.tensor(&format!("{name}.{l}.weight"), vec![s.o_real, s.k_real], &t)?;
         }
-        let r = nerf.occupancy.config().resolution as usize;
-        self.tensor(&format!("{prefix}occupancy.values"), vec![r, r, r], nerf.occupancy.values())?;
         Ok(())
     }
 
@@ -106,12 +121,8 @@ impl ModelWriter {
 }
 
 fn config_json(cfg: &NerfConfig, occ: &OccupancyConfig) -> Value {
-    let g = &cfg.grid;
     json!({
-        "grid": {
-            "levels": g.levels, "log2_table_size": g.log2_table_size,
-            "base_resolution": g.base_resolution, "finest_resolution": g.finest_resolution,
-        },
+        "grid": grid_json(&cfg.grid),
         "aabb": [cfg.aabb.min.to_array(), cfg.aabb.max.to_array()],
         "occupancy": {
             "resolution": occ.resolution, "steps_per_diagonal": occ.steps_per_diagonal,
@@ -170,6 +181,20 @@ impl<'a> ModelReader<'a> {
         Ok(v)
     }
 
+    /// An MLP's flat (padded) weight buffer of length `n` from its `{name}.{l}.weight` tensors.
+    pub fn mlp(&self, name: &str, layers: &[LayerShape], n: usize) -> Result<Vec<f32>, String> {
+        let mut flat = vec![0.0; n];
+        for (l, s) in layers.iter().enumerate() {
+            let t = self.tensor(&format!("{name}.{l}.weight"), &[s.o_real, s.k_real])?;
+            for j in 0..s.o_real {
+                for k in 0..s.k_real {
+                    flat[s.offset + k * s.o + j] = t[j * s.k_real + k];
+                }
+            }
+        }
+        Ok(flat)
+    }
+
     /// The NeRF stored under `prefix`.
     pub fn nerf(&self, prefix: &str) -> Result<Nerf, String> {
         let key = format!("{prefix}config");
@@ -179,20 +204,8 @@ impl<'a> ModelReader<'a> {
         let field = NerfField::new(config.clone());
         let entries = field.grid().entries();
         let master = self.tensor(&format!("{prefix}grid.params"), &[entries, 2])?;
-        let mlp = |name: &str, layers: &[LayerShape], n: usize| -> Result<Vec<f32>, String> {
-            let mut flat = vec![0.0; n];
-            for (l, s) in layers.iter().enumerate() {
-                let t = self.tensor(&format!("{prefix}{name}.{l}.weight"), &[s.o_real, s.k_real])?;
-                for j in 0..s.o_real {
-                    for k in 0..s.k_real {
-                        flat[s.offset + k * s.o + j] = t[j * s.k_real + k];
-                    }
-                }
-            }
-            Ok(flat)
-        };
-        let density = mlp("density", field.density_layers(), field.density_params())?;
-        let colour = mlp("colour", field.colour_layers(), field.colour_params())?;
+        let density = self.mlp(&format!("{prefix}density"), field.density_layers(), field.density_params())?;
+        let colour = self.mlp(&format!("{prefix}colour"), field.colour_layers(), field.colour_params())?;
         let r = occ.resolution as usize;
         let values = self.tensor(&format!("{prefix}occupancy.values"), &[r, r, r])?;
         if let Some(i) = values.iter().position(|&v| v < 0.0) {
@@ -208,22 +221,33 @@ impl<'a> ModelReader<'a> {
     }
 }
 
-fn parse_config(v: &Value) -> Result<(NerfConfig, OccupancyConfig), String> {
-    let int = |v: &Value, key: &str, lo: u64, hi: u64| -> Result<u64, String> {
-        match v.get(key).and_then(Value::as_u64) {
-            Some(x) if (lo..=hi).contains(&x) => Ok(x),
-            Some(x) => Err(format!("'{key}' = {x} is outside {lo}..={hi}")),
-            None => Err(format!("'{key}' missing or not an integer")),
-        }
-    };
-    let g = v.get("grid").ok_or("'grid' missing")?;
+fn int(v: &Value, key: &str, lo: u64, hi: u64) -> Result<u64, String> {
+    match v.get(key).and_then(Value::as_u64) {
+        Some(x) if (lo..=hi).contains(&x) => Ok(x),
+        Some(x) => Err(format!("'{key}' = {x} is outside {lo}..={hi}")),
+        None => Err(format!("'{key}' missing or not an integer")),
+    }
+}
+
+fn grid_json(g: &HashGridConfig) -> Value {
+    json!({
+        "levels": g.levels, "log2_table_size": g.log2_table_size,
+        "base_resolution": g.base_resolution, "finest_resolution": g.finest_resolution,
+    })
+}
+
+fn parse_grid(g: &Value) -> Result<HashGridConfig, String> {
     let base = int(g, "base_resolution", 1, 1 << 20)? as u32;
-    let grid = HashGridConfig {
+    Ok(HashGridConfig {
         levels: int(g, "levels", 1, 32)? as usize,
         log2_table_size: int(g, "log2_table_size", 4, 26)? as u32,
         base_resolution: base,
         finest_resolution: int(g, "finest_resolution", base as u64, 1 << 20)? as u32,
-    };
+    })
+}
+
+fn parse_config(v: &Value) -> Result<(NerfConfig, OccupancyConfig), String> {
+    let grid = parse_grid(v.get("grid").ok_or("'grid' missing")?)?;
     let corner = |c: Option<&Value>| -> Option<Vec3> {
         let a = c?.as_array().filter(|a| a.len() == 3)?;
         let x: Vec<f32> = a.iter().map(|x| x.as_f64().map(|x| x as f32)).collect::<Option<_>>()?;
@@ -288,4 +312,80 @@ pub fn nerf_from_bytes(bytes: &[u8]) -> Result<Nerf, String> {
 pub fn load_nerf(path: &Path) -> Result<Nerf, String> {
     let bytes = read_model_bytes(path)?;
     nerf_from_bytes(&bytes).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// A model file of either kind.
+pub enum LoadedModel {
+    /// A plain NeRF (`kind = "nerf"`).
+    Nerf(Box<Nerf>),
+    /// A residual model (`kind = "residual"`), background embedded.
+    Residual(Box<ResidualModel>),
+}
+
+fn mix_name(kind: MixKind) -> &'static str {
+    match kind {
+        MixKind::Mixnet(DensityMix::Raw) => "mixnet-raw",
+        MixKind::Mixnet(DensityMix::Activated) => "mixnet-activated",
+        MixKind::Sum => "sum",
+    }
+}
+
+/// Saves a residual model (`kind = "residual"`): the frozen background under `background.`,
+/// the residual NeRF (with the mixed field's occupancy grid) under `residual.`, the Mixnet
+/// under `mixnet.`, and `mix` / `mixnet_grid` metadata. The background is embedded, so the
+/// file is all a robot needs.
+pub fn save_residual(path: &Path, m: &ResidualModel, extra: &[(&str, String)]) -> Result<(), String> {
+    let at = |e: String| format!("{}: {e}", path.display());
+    let mut w = ModelWriter::new("residual");
+    w.nerf("background.", &m.field.background).map_err(at)?;
+    w.nerf_parts("residual.", m.field.residual(), &m.params.residual, &m.occupancy).map_err(at)?;
+    w.meta("mix", mix_name(m.field.kind()));
+    let mixnet = m.field.mixnet();
+    w.meta("mixnet_grid", &grid_json(mixnet.grid().config()).to_string());
+    let entries = m.params.mixnet.grid.master.len() / 2;
+    w.tensor("mixnet.grid.params", vec![entries, 2], &m.params.mixnet.grid.master).map_err(at)?;
+    w.mlp("mixnet", m.params.mixnet.mlp.weights(), mixnet.mlp().layers()).map_err(at)?;
+    for (k, v) in extra {
+        w.meta(k, v);
+    }
+    w.write(path)
+}
+
+/// Loads a model of either kind from model-file bytes.
+pub fn model_from_bytes(bytes: &[u8]) -> Result<LoadedModel, String> {
+    let r = ModelReader::parse(bytes)?;
+    match r.meta("kind")? {
+        "nerf" => Ok(LoadedModel::Nerf(Box::new(r.nerf("")?))),
+        "residual" => {
+            let background = r.nerf("background.")?;
+            let res = r.nerf("residual.")?;
+            if res.field.config().aabb != background.field.config().aabb {
+                return Err("residual and background scene boxes differ".into());
+            }
+            let kind = match r.meta("mix")? {
+                "mixnet-raw" => MixKind::Mixnet(DensityMix::Raw),
+                "mixnet-activated" => MixKind::Mixnet(DensityMix::Activated),
+                "sum" => MixKind::Sum,
+                other => return Err(format!("metadata 'mix' = '{other}' is not mixnet-raw, mixnet-activated or sum")),
+            };
+            let g: Value =
+                serde_json::from_str(r.meta("mixnet_grid")?).map_err(|e| format!("metadata 'mixnet_grid': {e}"))?;
+            let mixnet_grid = parse_grid(&g).map_err(|e| format!("metadata 'mixnet_grid': {e}"))?;
+            let config = ResidualConfig { residual: res.field.config().clone(), kind, mixnet_grid };
+            let field = ResidualField::new(background, config);
+            let mixnet = field.mixnet();
+            let entries = mixnet.grid().entries();
+            let grid = HashGridParams::from_master(r.tensor("mixnet.grid.params", &[entries, 2])?);
+            let mlp = mixnet.mlp_params_from(r.mlp("mixnet", mixnet.mlp().layers(), mixnet.mlp().n_params())?);
+            let params = ResidualParams { residual: res.params, mixnet: MixnetParams { grid, mlp } };
+            Ok(LoadedModel::Residual(Box::new(ResidualModel { field, params, occupancy: res.occupancy })))
+        }
+        other => Err(format!("model kind '{other}' is not 'nerf' or 'residual'")),
+    }
+}
+
+/// Loads a model of either kind; errors name the file.
+pub fn load_model(path: &Path) -> Result<LoadedModel, String> {
+    let bytes = read_model_bytes(path)?;
+    model_from_bytes(&bytes).map_err(|e| format!("{}: {e}", path.display()))
 }

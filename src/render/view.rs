@@ -16,10 +16,11 @@
 use super::composite::RayAccumulator;
 use super::depth::DensityThreshold;
 use super::occupancy::RaySpan;
+use super::OccupancyGrid;
 use super::{pixel_ray, Intrinsics, Pose, Ray};
-use crate::field::{FieldContext, Nerf};
-use crate::mlp::Activation;
+use crate::field::{Nerf, NerfField};
 use crate::simd::Isa;
+use crate::train::model::Model;
 use glam::Vec3;
 
 /// Rays per chunk (bounds the sample buffers).
@@ -47,11 +48,12 @@ pub struct FullOutputs<'a> {
     pub expected_z: &'a mut [f32],
     /// Threshold depth as z, NaN for holes.
     pub threshold_z: &'a mut [f32],
+    /// β composited like a colour (`Σ w β`; residual models: where the scene changed).
+    pub beta: &'a mut [f32],
 }
 
-/// Reusable buffers for rendering views.
-#[derive(Default)]
-pub struct ViewRenderer {
+/// Reusable buffers for rendering views of a model `M` (a [`NerfField`] by default).
+pub struct ViewRenderer<M: Model = NerfField> {
     states: Vec<RayState>,
     active: Vec<u32>,
     seg: Vec<(u32, u32)>,
@@ -59,24 +61,69 @@ pub struct ViewRenderer {
     delta: Vec<f32>,
     positions: Vec<Vec3>,
     dirs: Vec<Vec3>,
-    raw: Vec<f32>,
-    rgb_raw: Vec<[f32; 3]>,
-    ctx: FieldContext,
+    sigma: Vec<f32>,
+    rgb: Vec<[f32; 3]>,
+    beta: Vec<f32>,
+    beta_acc: Vec<f32>,
+    ctx: M::Context,
 }
 
-impl ViewRenderer {
+impl<M: Model> Default for ViewRenderer<M> {
+    fn default() -> Self {
+        ViewRenderer {
+            states: Vec::new(),
+            active: Vec::new(),
+            seg: Vec::new(),
+            t: Vec::new(),
+            delta: Vec::new(),
+            positions: Vec::new(),
+            dirs: Vec::new(),
+            sigma: Vec::new(),
+            rgb: Vec::new(),
+            beta: Vec::new(),
+            beta_acc: Vec::new(),
+            ctx: M::Context::default(),
+        }
+    }
+}
+
+/// What is rendered: a model, its parameters and its occupancy grid.
+pub struct Scene<'a, M: Model> {
+    /// The field.
+    pub model: &'a M,
+    /// Its parameters.
+    pub params: &'a M::Params,
+    /// Where it is worth sampling.
+    pub occupancy: &'a OccupancyGrid,
+}
+
+impl<'a> From<&'a Nerf> for Scene<'a, NerfField> {
+    fn from(n: &'a Nerf) -> Self {
+        Scene { model: &n.field, params: &n.params, occupancy: &n.occupancy }
+    }
+}
+
+impl<M: Model> ViewRenderer<M> {
     /// An empty renderer (buffers grow on first use).
-    pub fn new() -> ViewRenderer {
+    pub fn new() -> ViewRenderer<M> {
         ViewRenderer::default()
     }
 
     /// Threshold z-depth of every pixel into `z` (`width × height`), NaN for holes.
-    pub fn depth(&mut self, isa: Isa, nerf: &Nerf, k: &Intrinsics, pose: &Pose, m: DensityThreshold, z: &mut [f32]) {
+    pub fn depth(
+        &mut self,
+        isa: Isa,
+        scene: &Scene<'_, M>,
+        k: &Intrinsics,
+        pose: &Pose,
+        m: DensityThreshold,
+        z: &mut [f32],
+    ) {
         let n = (k.width * k.height) as usize;
         assert_eq!(z.len(), n, "render: depth buffer is not width × height");
         for start in (0..n).step_by(CHUNK_RAYS) {
             let end = (start + CHUNK_RAYS).min(n);
-            self.run_chunk(isa, nerf, k, pose, start..end, m, false);
+            self.run_chunk(isa, scene, k, pose, start..end, m, false);
             for (o, s) in z[start..end].iter_mut().zip(&self.states) {
                 *o = s.hit.map_or(f32::NAN, |t| s.ray.range_to_z(t));
             }
@@ -87,7 +134,7 @@ impl ViewRenderer {
     pub fn full(
         &mut self,
         isa: Isa,
-        nerf: &Nerf,
+        scene: &Scene<'_, M>,
         k: &Intrinsics,
         pose: &Pose,
         background: [f32; 3],
@@ -102,7 +149,7 @@ impl ViewRenderer {
         }
         for start in (0..n).step_by(CHUNK_RAYS) {
             let end = (start + CHUNK_RAYS).min(n);
-            self.run_chunk(isa, nerf, k, pose, start..end, m, true);
+            self.run_chunk(isa, scene, k, pose, start..end, m, true);
             for (i, s) in self.states.iter().enumerate() {
                 let p = start + i;
                 let c = s.acc.finish(background);
@@ -115,6 +162,9 @@ impl ViewRenderer {
                 if !out.threshold_z.is_empty() {
                     out.threshold_z[p] = s.hit.map_or(f32::NAN, |t| s.ray.range_to_z(t));
                 }
+                if !out.beta.is_empty() {
+                    out.beta[p] = self.beta_acc[i];
+                }
             }
         }
     }
@@ -124,17 +174,19 @@ impl ViewRenderer {
     fn run_chunk(
         &mut self,
         isa: Isa,
-        nerf: &Nerf,
+        scene: &Scene<'_, M>,
         k: &Intrinsics,
         pose: &Pose,
         pixels: std::ops::Range<usize>,
         m: DensityThreshold,
         full: bool,
     ) {
-        let occ = &nerf.occupancy;
+        let occ = scene.occupancy;
         let max_samples = occ.config().max_samples;
         self.states.clear();
         self.active.clear();
+        self.beta_acc.clear();
+        self.beta_acc.resize(pixels.len(), 0.0);
         for p in pixels {
             let ray = pixel_ray(k, pose, p as u32 % k.width, p as u32 / k.width);
             let span = occ.span(ray.origin, ray.dir).unwrap_or(RaySpan { near: 0.0, far: 0.0 });
@@ -172,30 +224,34 @@ impl ViewRenderer {
                 }
             }
             let n = self.t.len();
-            self.raw.resize(n, 0.0);
+            self.sigma.resize(n, 0.0);
             if full && n > 0 {
-                self.rgb_raw.resize(n, [0.0; 3]);
-                nerf.field.forward(
+                self.rgb.resize(n, [0.0; 3]);
+                scene.model.forward(
                     isa,
-                    &nerf.params,
+                    scene.params,
                     &self.positions,
                     &self.dirs,
-                    &mut self.raw,
-                    &mut self.rgb_raw,
+                    &mut self.sigma,
+                    &mut self.rgb,
                     &mut self.ctx,
                 );
+                scene.model.betas(&self.ctx, &mut self.beta);
             } else if n > 0 {
-                nerf.field.density(isa, &nerf.params, &self.positions, &mut self.raw, &mut self.ctx);
+                scene.model.density(isa, scene.params, &self.positions, &mut self.sigma, &mut self.ctx);
             }
             let states = &mut self.states;
-            let (t, delta, raw, rgb_raw, seg) = (&self.t, &self.delta, &self.raw, &self.rgb_raw, &self.seg);
+            let beta_acc = &mut self.beta_acc;
+            let (t, delta, sigma, rgb, beta, seg) =
+                (&self.t, &self.delta, &self.sigma, &self.rgb, &self.beta, &self.seg);
             let mut i = 0;
             self.active.retain(|&r| {
                 let s = &mut states[r as usize];
                 let (start, count) = seg[i];
                 i += 1;
                 for j in start as usize..(start + count) as usize {
-                    if s.hit.is_none() && m.is_hit(raw[j]) {
+                    // The test in log space: ln σ ≥ ln m, or the raw value s = ln σ ≥ S.
+                    if s.hit.is_none() && m.is_hit(sigma[j].ln()) {
                         s.hit = Some(t[j]);
                     }
                     if !full {
@@ -203,9 +259,11 @@ impl ViewRenderer {
                             break;
                         }
                     } else if !s.acc.is_opaque() {
-                        let sigma = Activation::TruncExp.forward(raw[j]);
-                        let c = rgb_raw[j].map(|v| Activation::Sigmoid.forward(v));
-                        s.acc.push(sigma, delta[j], t[j], c);
+                        let before = s.acc.finish([0.0; 3]).transmittance;
+                        s.acc.push(sigma[j], delta[j], t[j], rgb[j]);
+                        if !beta.is_empty() {
+                            beta_acc[r as usize] += (before - s.acc.finish([0.0; 3]).transmittance) * beta[j];
+                        }
                     }
                 }
                 let finished = if full { s.acc.is_opaque() && s.hit.is_some() } else { s.hit.is_some() };
@@ -226,6 +284,8 @@ pub struct RenderedView {
     pub expected_z: Vec<f32>,
     /// Threshold z-depth per pixel, NaN for holes.
     pub threshold_z: Vec<f32>,
+    /// β per pixel (zero for a plain NeRF).
+    pub beta: Vec<f32>,
 }
 
 impl Nerf {
@@ -239,17 +299,32 @@ impl Nerf {
         background: [f32; 3],
         m: DensityThreshold,
     ) -> RenderedView {
-        let n = (k.width * k.height) as usize;
-        let mut v = RenderedView { rgb: vec![[0.0; 3]; n], expected_z: vec![0.0; n], threshold_z: vec![0.0; n] };
-        ViewRenderer::new().full(
-            isa,
-            self,
-            k,
-            pose,
-            background,
-            m,
-            FullOutputs { rgb: &mut v.rgb, expected_z: &mut v.expected_z, threshold_z: &mut v.threshold_z },
-        );
-        v
+        render_view(isa, &Scene::from(self), k, pose, background, m)
     }
+}
+
+/// Renders colour, expected and threshold z-depth and β of one view of `scene` (allocates).
+pub fn render_view<M: Model>(
+    isa: Isa,
+    scene: &Scene<'_, M>,
+    k: &Intrinsics,
+    pose: &Pose,
+    background: [f32; 3],
+    m: DensityThreshold,
+) -> RenderedView {
+    let n = (k.width * k.height) as usize;
+    let mut v = RenderedView {
+        rgb: vec![[0.0; 3]; n],
+        expected_z: vec![0.0; n],
+        threshold_z: vec![0.0; n],
+        beta: vec![0.0; n],
+    };
+    let out = FullOutputs {
+        rgb: &mut v.rgb,
+        expected_z: &mut v.expected_z,
+        threshold_z: &mut v.threshold_z,
+        beta: &mut v.beta,
+    };
+    ViewRenderer::<M>::new().full(isa, scene, k, pose, background, m, out);
+    v
 }

@@ -65,6 +65,10 @@ pub trait Model: Sync {
     fn groups<'a>(&self, p: &'a mut Self::Params, g: &'a Self::Grads) -> Vec<ParamGroup<'a>>;
     /// Re-derives what the optimiser's writes made stale (the MLPs' transposed copies).
     fn after_step(&self, p: &mut Self::Params);
+    /// β per sample of the last forward into `out` (empty for models without a Mixnet).
+    fn betas(&self, _ctx: &Self::Context, out: &mut Vec<f32>) {
+        out.clear();
+    }
 }
 
 /// The NeRF's forward context plus the activated values backward differentiates through.
@@ -224,6 +228,10 @@ impl Model for ResidualField {
             grid_group(&mut m.grid, &g.mixnet.grid),
             ParamGroup { master: m.mlp.weights_mut(), grad: &g.mixnet.mlp, mirror: None, l2: MLP_L2 },
         ]
+    }
+
+    fn betas(&self, ctx: &ResidualContext, out: &mut Vec<f32>) {
+        ResidualField::betas(self, ctx, out);
     }
 
     fn after_step(&self, p: &mut ResidualParams) {

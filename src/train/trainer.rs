@@ -8,6 +8,7 @@
 //! are per ray in ray order, the field reduces in fixed slots — same seed, same bits on any
 //! thread count.
 
+use crate::field::residual::{ResidualConfig, ResidualField, ResidualModel};
 pub use crate::field::Nerf;
 use crate::field::{NerfConfig, NerfField};
 use crate::render::{
@@ -216,6 +217,23 @@ pub fn train_nerf(
     let field = NerfField::new(field_config);
     let (params, occupancy) = train_model(isa, &field, aabb, views, cfg, log_every, log);
     Nerf { field, params, occupancy }
+}
+
+/// Trains a residual model (residual NeRF + Mixnet over the frozen `background`) on the scene
+/// `views`; the occupancy grid covers the mixed field.
+pub fn train_residual(
+    isa: Isa,
+    background: Nerf,
+    views: &[View],
+    config: ResidualConfig,
+    cfg: &TrainConfig,
+    log_every: u32,
+    log: impl FnMut(StepStats),
+) -> ResidualModel {
+    let aabb = config.residual.aabb;
+    let field = ResidualField::new(background, config);
+    let (params, occupancy) = train_model(isa, &field, aabb, views, cfg, log_every, log);
+    ResidualModel { field, params, occupancy }
 }
 
 /// Trains `model` on `views` inside `aabb` from fresh parameters (seeded by `cfg.seed`);
