@@ -74,14 +74,17 @@ fn nerf_synthetic_layout_loads_cameras_pixels_and_ground_truth() {
 }
 
 #[test]
-fn sixteen_bit_gray_and_rgba_images_load_at_full_precision() {
+fn sixteen_bit_gray_rgba_and_jpeg_images_load() {
     let dir = scratch("formats");
     image::ImageBuffer::<image::Luma<u16>, _>::from_fn(4, 4, |x, _| image::Luma([x as u16 * 1000 + 1]))
         .save(dir.join("train/g16.png"))
         .unwrap();
     image::RgbaImage::from_fn(4, 4, |_, _| image::Rgba([255, 0, 0, 51])).save(dir.join("train/rgba.png")).unwrap();
-    let frames: Vec<_> =
-        ["train/g16", "train/rgba"].iter().map(|f| json!({"file_path": f, "transform_matrix": pose(1.0)})).collect();
+    image::RgbImage::from_fn(8, 8, |_, _| image::Rgb([200, 100, 50])).save(dir.join("train/photo.jpg")).unwrap();
+    let frames: Vec<_> = ["train/g16", "train/rgba", "train/photo"]
+        .iter()
+        .map(|f| json!({"file_path": f, "transform_matrix": pose(1.0)}))
+        .collect();
     write_json(&dir, "transforms_train.json", &json!({"fl_x": 5, "frames": frames}));
     let opts = LoadOptions { background: [0.0, 0.0, 1.0], ..Default::default() };
     let d = Dataset::load(&dir, "train", &opts).unwrap();
@@ -91,6 +94,9 @@ fn sixteen_bit_gray_and_rgba_images_load_at_full_precision() {
     let c = d.views[1].rgb[0];
     assert!((c[0] - 0.2).abs() < 1e-6 && c[1] == 0.0 && (c[2] - 0.8).abs() < 1e-6, "{c:?}");
     assert!(d.had_alpha);
+    // JPEG, found without an extension in file_path; lossy, so within a few levels.
+    let j = d.views[2].rgb[0];
+    assert!((j[0] - 200.0 / 255.0).abs() < 0.03 && (j[2] - 50.0 / 255.0).abs() < 0.03, "{j:?}");
     assert_eq!(d.aabb_source, AabbSource::Cameras);
 }
 
