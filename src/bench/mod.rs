@@ -4,7 +4,8 @@
 //! Limits are measured in the same run so ratios are meaningful on any machine: the fp32
 //! FMA peak ([`peak::fma_loop`]) for the MLP, and a bare random-gather loop over a table of
 //! the grid's size for the hash grid. The pipeline figures (`train_samples_per_s`,
-//! `render_depth_ms_200`) come from a short training run on the synthetic workspace.
+//! `render_depth_ms_200`, `occupancy_update_ms[_warmup]`) come from a short training run on the
+//! synthetic workspace.
 
 pub mod peak;
 
@@ -397,6 +398,20 @@ pub fn run(opts: &BenchOptions) -> BenchReport {
     let mut z = vec![0f32; 200 * 200];
     let v = time_reps(reps, || renderer.depth(isa, &(&nerf).into(), &k, &pose, DensityThreshold::Sigma(3.0), &mut z));
     push("render_depth_ms_200", "ms", v.iter().map(|s| s * 1e3).collect());
+    // Occupancy-grid updates of that model at the default 128³: a warm-up update evaluates
+    // every cell, a later one ¼ random + ¼ occupied cells (DESIGN §2.5), all through the
+    // density-only path on all threads.
+    let mut occ = crate::render::OccupancyGrid::new(nerf.field.config().aabb, Default::default());
+    let mut ctx = Default::default();
+    let mut orng = Rng::new(11);
+    for (name, step) in [("occupancy_update_ms_warmup", 0), ("occupancy_update_ms", u32::MAX)] {
+        let v = time_reps(reps, || {
+            occ.update(step, &mut orng, |p, sigma| {
+                crate::train::model::Model::density(&nerf.field, isa, &nerf.params, p, sigma, &mut ctx)
+            })
+        });
+        push(name, "ms", v.iter().map(|s| s * 1e3).collect());
+    }
 
     let mut report =
         BenchReport { cpu_level: isa.to_string(), threads, log2_table_size: opts.log2_table_size, figures };
