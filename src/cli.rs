@@ -41,6 +41,17 @@ pub enum DepthChoice {
     Expected,
 }
 
+impl DepthChoice {
+    /// The density threshold used for threshold depth (for `Expected`, the one a full render
+    /// still reports beside it: the default m).
+    pub fn threshold(self) -> crate::render::DensityThreshold {
+        match self {
+            DepthChoice::Threshold(m) => m,
+            DepthChoice::Expected => crate::render::DensityThreshold::Sigma(DEFAULT_M),
+        }
+    }
+}
+
 /// Scoring crop of `rnerf eval`.
 pub use crate::eval::CropRule;
 

@@ -54,10 +54,7 @@ pub fn evaluate<M: Model>(
     background: [f32; 3],
     mut progress: impl FnMut(usize),
 ) -> EvalReport {
-    let m = match depth {
-        DepthChoice::Threshold(m) => m,
-        DepthChoice::Expected => crate::render::DensityThreshold::Sigma(crate::cli::DEFAULT_M),
-    };
+    let m = depth.threshold();
     let mut renderer = ViewRenderer::<M>::new();
     let mut errors = DepthErrors::default();
     let (mut psnr_sum, mut with_depth) = (0.0, 0);

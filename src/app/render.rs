@@ -6,7 +6,7 @@ use crate::cli::DepthChoice;
 use crate::data::{Dataset, LoadOptions};
 use crate::io::{export, load_model, LoadedModel};
 use crate::render::view::Scene;
-use crate::render::{DensityThreshold, FullOutputs, ViewRenderer};
+use crate::render::{FullOutputs, ViewRenderer};
 use crate::simd::Isa;
 use crate::train::model::Model;
 use std::path::Path;
@@ -34,10 +34,7 @@ fn render_all<M: Model>(
     beta: bool,
 ) -> Result<(), String> {
     let isa = Isa::detect();
-    let m = match depth {
-        DepthChoice::Threshold(m) => m,
-        DepthChoice::Expected => DensityThreshold::Sigma(crate::cli::DEFAULT_M),
-    };
+    let m = depth.threshold();
     let mut renderer = ViewRenderer::<M>::new();
     let mut progress = Progress::new("render", data.views.len() as u64);
     for (i, (v, f)) in data.views.iter().zip(&data.frames).enumerate() {
