@@ -54,3 +54,19 @@ fn threshold_units() {
     assert_eq!(threshold_depth(&t, &raw, DensityThreshold::Raw(11.0)), None);
     assert_eq!(threshold_depth(&[], &[], DensityThreshold::Sigma(3.0)), None);
 }
+
+/// Renderers compare σ against `min_sigma` instead of taking logs: the same verdict as
+/// `is_hit` on the raw value, away from exact ties.
+#[test]
+fn min_sigma_agrees_with_the_raw_test() {
+    for th in [
+        DensityThreshold::Sigma(3.0),
+        DensityThreshold::Sigma(0.0),
+        DensityThreshold::Raw(3.0),
+        DensityThreshold::Raw(-1.0),
+    ] {
+        for s in [-20.0f32, -1.5, 0.0, 1.0, 1.0986, 1.1, 2.9, 3.1, 10.0] {
+            assert_eq!(s.exp() >= th.min_sigma(), th.is_hit(s), "{th:?} at s = {s}");
+        }
+    }
+}

@@ -5,6 +5,7 @@
 use super::error::{DataError, DataReport};
 use super::images::{decode_depth_exr, decode_mask, decode_rgb, dimensions};
 use super::transforms::{parse_transforms, DepthKind, FrameSpec, FrameType, Transforms};
+use crate::io::read_limited;
 use crate::render::{pixel_ray, Aabb, Intrinsics};
 use crate::train::trainer::View;
 use glam::Vec3;
@@ -96,17 +97,6 @@ pub fn split_json(dir: &Path, split: &str) -> Result<PathBuf, DataError> {
         return Ok(single);
     }
     Err(DataError::file(&named, format!("split '{split}' not found (no transforms_{split}.json or transforms.json)")))
-}
-
-fn read_limited(path: &Path, limit: u64) -> Result<Vec<u8>, String> {
-    let meta = std::fs::metadata(path).map_err(|e| format!("cannot open: {e}"))?;
-    if !meta.is_file() {
-        return Err("not a file".into());
-    }
-    if meta.len() > limit {
-        return Err(format!("file is {} bytes, beyond the {limit}-byte limit", meta.len()));
-    }
-    std::fs::read(path).map_err(|e| format!("cannot read: {e}"))
 }
 
 /// `path` if it exists, else `path` with a common image extension appended (NeRF-synthetic

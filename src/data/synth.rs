@@ -1,9 +1,8 @@
-//! Scene synthesiser, first bricks: analytic ray tracers of (a) a closed room (procedurally
-//! textured walls, floor and ceiling) with a shaded opaque sphere, seen from cameras inside it,
-//! and (b) a tabletop — a textured square table top with the sphere on it under a plain sky —
-//! seen from cameras around and above it. No files needed; used by the crate's tests and demo. Exact z-depth ground truth per
-//! pixel. (The workspace of issue #3 — table, several objects, a glass object with Fresnel
-//! reflection and refraction, written to disk in the dataset layout — grows from this.)
+//! Small analytic scenes for tests: (a) a closed room (procedurally textured walls, floor and
+//! ceiling) with a shaded opaque sphere, seen from cameras inside it, and (b) a tabletop — a
+//! textured square table top with the sphere on it under a plain sky — seen from cameras
+//! around and above it; exact z-depth ground truth per pixel. [`SynthScene`] is shared with the
+//! robot workspace of [`super::workspace`] and writes any of them in the dataset layout.
 
 use crate::render::{pixel_ray, Aabb, Intrinsics, Pose, Ray};
 use crate::train::trainer::View;
@@ -35,7 +34,7 @@ impl SynthScene {
     /// metres), and `r_{i}_mask.png` with the frame's `crop` when the scene has masks. Every file
     /// is written atomically.
     pub fn write_split(&self, dir: &std::path::Path, split: &str) -> Result<(), String> {
-        use crate::io::export::{depth_exr_bytes, rgb_png_bytes, write};
+        use crate::io::export::{depth_exr_bytes, mask_png_bytes, rgb_png_bytes, write};
         let sub = dir.join(split);
         std::fs::create_dir_all(&sub).map_err(|e| format!("{}: cannot create: {e}", sub.display()))?;
         let k = self.views.first().map(|v| v.intrinsics).ok_or("synth: no views")?;
@@ -46,20 +45,13 @@ impl SynthScene {
             write(&sub.join(format!("{name}.png")), rgb_png_bytes(&v.rgb, w, h))?;
             let z: Vec<f32> = self.depth[i].iter().map(|&z| if z.is_finite() { z } else { f32::NAN }).collect();
             write(&sub.join(format!("{name}_depth.exr")), depth_exr_bytes(&z, w, h))?;
-            let m = v.pose.rotation;
-            let t = v.pose.translation;
-            let rows: Vec<[f32; 4]> = (0..3).map(|r| [m.x_axis[r], m.y_axis[r], m.z_axis[r], t[r]]).collect();
             let mut frame = serde_json::json!({
                 "file_path": format!("./{split}/{name}"),
-                "transform_matrix": [rows[0], rows[1], rows[2], [0.0, 0.0, 0.0, 1.0]],
+                "transform_matrix": v.pose.to_matrix(),
                 "depth_file_path": format!("{split}/{name}_depth.exr"),
             });
             if let Some(mask) = self.masks.get(i) {
-                let px: Vec<u8> = mask.iter().map(|&b| if b { 255 } else { 0 }).collect();
-                let img = image::GrayImage::from_raw(w, h, px).expect("mask is width × height");
-                let mut bytes = std::io::Cursor::new(Vec::new());
-                img.write_to(&mut bytes, image::ImageFormat::Png).map_err(|e| format!("mask PNG: {e}"))?;
-                write(&sub.join(format!("{name}_mask.png")), Ok(bytes.into_inner()))?;
+                write(&sub.join(format!("{name}_mask.png")), mask_png_bytes(mask, w, h))?;
                 frame["mask_path"] = format!("{split}/{name}_mask.png").into();
                 frame["crop"] = self.crops[i].to_vec().into();
             }

@@ -6,6 +6,19 @@ use std::fs::{self, File};
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 
+/// Reads a whole regular file of at most `limit` bytes (the size is checked before reading).
+/// Errors are bare messages; callers put the path (and frame, field) in front.
+pub fn read_limited(path: &Path, limit: u64) -> Result<Vec<u8>, String> {
+    let meta = fs::metadata(path).map_err(|e| format!("cannot open: {e}"))?;
+    if !meta.is_file() {
+        return Err("not a file".into());
+    }
+    if meta.len() > limit {
+        return Err(format!("file is {} bytes, beyond the {limit}-byte limit", meta.len()));
+    }
+    fs::read(path).map_err(|e| format!("cannot read: {e}"))
+}
+
 /// Writes `bytes` to `path` atomically. The directory must exist. Errors name the path.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), String> {
     let dir = match path.parent() {

@@ -111,6 +111,13 @@ pub fn depth_range(depth: &[f32]) -> (f32, f32) {
     (at(0.02), at(0.98))
 }
 
+/// A mask as an 8-bit gray PNG (255 set, 0 clear).
+pub fn mask_png_bytes(mask: &[bool], width: u32, height: u32) -> Result<Vec<u8>, String> {
+    check(mask.len(), width, height);
+    let px: Vec<u8> = mask.iter().map(|&b| if b { 255 } else { 0 }).collect();
+    png_bytes(image::GrayImage::from_raw(width, height, px).expect("sized above"))
+}
+
 /// Colours in [0, 1] as an 8-bit RGB PNG.
 pub fn rgb_png_bytes(rgb: &[[f32; 3]], width: u32, height: u32) -> Result<Vec<u8>, String> {
     check(rgb.len(), width, height);
@@ -121,12 +128,9 @@ pub fn rgb_png_bytes(rgb: &[[f32; 3]], width: u32, height: u32) -> Result<Vec<u8
 /// The camera of a depth image as JSON: intrinsics, camera-to-world pose (OpenGL camera) and
 /// the depth convention.
 pub fn camera_json(k: &Intrinsics, pose: &Pose) -> String {
-    let m = pose.rotation;
-    let t = pose.translation;
-    let rows: Vec<[f32; 4]> = (0..3).map(|r| [m.x_axis[r], m.y_axis[r], m.z_axis[r], t[r]]).collect();
     serde_json::json!({
         "width": k.width, "height": k.height, "fx": k.fx, "fy": k.fy, "cx": k.cx, "cy": k.cy,
-        "transform_matrix": [rows[0], rows[1], rows[2], [0.0, 0.0, 0.0, 1.0]],
+        "transform_matrix": pose.to_matrix(),
         "camera_convention": "OpenGL camera-to-world (camera looks down -Z, +Y up)",
         "depth_kind": "z", "depth_unit": "m", "holes": "NaN in .exr/.npy, 0 in the 16-bit mm PNG",
     })

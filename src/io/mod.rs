@@ -5,5 +5,5 @@ pub mod atomic;
 pub mod export;
 pub mod model;
 
-pub use atomic::write_atomic;
+pub use atomic::{read_limited, write_atomic};
 pub use model::{load_model, load_nerf, model_from_bytes, nerf_from_bytes, save_nerf, save_residual, LoadedModel};

@@ -279,14 +279,7 @@ fn parse_config(v: &Value) -> Result<(NerfConfig, OccupancyConfig), String> {
 
 /// Reads a whole model file (size-limited), errors naming the file.
 pub fn read_model_bytes(path: &Path) -> Result<Vec<u8>, String> {
-    let meta = std::fs::metadata(path).map_err(|e| format!("{}: cannot open model: {e}", path.display()))?;
-    if !meta.is_file() {
-        return Err(format!("{}: not a file", path.display()));
-    }
-    if meta.len() > MAX_MODEL_BYTES {
-        return Err(format!("{}: {} bytes, beyond the model size limit", path.display(), meta.len()));
-    }
-    std::fs::read(path).map_err(|e| format!("{}: cannot read model: {e}", path.display()))
+    super::read_limited(path, MAX_MODEL_BYTES).map_err(|e| format!("{}: model file: {e}", path.display()))
 }
 
 /// Saves a plain NeRF (`kind = "nerf"`) with extra informational metadata.

@@ -54,6 +54,18 @@ impl Pose {
         Pose { rotation: Mat3::from_cols(col(0), col(1), col(2)), translation: col(3) }
     }
 
+    /// The top three rows of the 4×4 `transform_matrix` (inverse of [`Pose::from_rows`]).
+    pub fn to_rows(&self) -> [[f32; 4]; 3] {
+        let (m, t) = (self.rotation, self.translation);
+        std::array::from_fn(|r| [m.x_axis[r], m.y_axis[r], m.z_axis[r], t[r]])
+    }
+
+    /// The 4×4 camera-to-world `transform_matrix` as written in transforms json.
+    pub fn to_matrix(&self) -> [[f32; 4]; 4] {
+        let r = self.to_rows();
+        [r[0], r[1], r[2], [0.0, 0.0, 0.0, 1.0]]
+    }
+
     /// The viewing direction (camera −Z) in world coordinates.
     pub fn forward(&self) -> Vec3 {
         -self.rotation.z_axis

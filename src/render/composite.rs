@@ -96,9 +96,9 @@ impl RayAccumulator {
         self.acc.transmittance < EARLY_STOP_TRANSMITTANCE
     }
 
-    /// Adds the next sample (activated density and colour).
+    /// Adds the next sample (activated density and colour); returns its weight `w = T·α`.
     #[inline]
-    pub fn push(&mut self, sigma: f32, delta: f32, t: f32, rgb: [f32; 3]) {
+    pub fn push(&mut self, sigma: f32, delta: f32, t: f32, rgb: [f32; 3]) -> f32 {
         let a = &mut self.acc;
         let keep = (-sigma * delta).exp();
         let w = a.transmittance * (1.0 - keep);
@@ -109,6 +109,7 @@ impl RayAccumulator {
         a.depth += w * t;
         a.transmittance *= keep;
         a.samples_used += 1;
+        w
     }
 
     /// The composite with the background term `T · bg` added.

@@ -36,6 +36,17 @@ impl DensityThreshold {
     }
 }
 
+impl DensityThreshold {
+    /// The smallest activated density σ that is solid: `m`, or `e^S` for a raw threshold
+    /// (renderers compare σ once per sample instead of taking its log).
+    pub fn min_sigma(self) -> f32 {
+        match self {
+            DensityThreshold::Sigma(m) => m.max(0.0),
+            DensityThreshold::Raw(v) => v.exp(),
+        }
+    }
+}
+
 /// How a depth map is computed.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum DepthMethod {

@@ -142,9 +142,12 @@ impl<M: Model> ViewRenderer<M> {
         out: FullOutputs<'_>,
     ) {
         let n = (k.width * k.height) as usize;
-        for (len, what) in
-            [(out.rgb.len(), "rgb"), (out.expected_z.len(), "expected"), (out.threshold_z.len(), "threshold")]
-        {
+        for (len, what) in [
+            (out.rgb.len(), "rgb"),
+            (out.expected_z.len(), "expected"),
+            (out.threshold_z.len(), "threshold"),
+            (out.beta.len(), "beta"),
+        ] {
             assert!(len == n || len == 0, "render: {what} buffer is not width × height");
         }
         for start in (0..n).step_by(CHUNK_RAYS) {
@@ -183,6 +186,7 @@ impl<M: Model> ViewRenderer<M> {
     ) {
         let occ = scene.occupancy;
         let max_samples = occ.config().max_samples;
+        let min_sigma = m.min_sigma();
         self.states.clear();
         self.active.clear();
         self.beta_acc.clear();
@@ -250,8 +254,7 @@ impl<M: Model> ViewRenderer<M> {
                 let (start, count) = seg[i];
                 i += 1;
                 for j in start as usize..(start + count) as usize {
-                    // The test in log space: ln σ ≥ ln m, or the raw value s = ln σ ≥ S.
-                    if s.hit.is_none() && m.is_hit(sigma[j].ln()) {
+                    if s.hit.is_none() && sigma[j] >= min_sigma {
                         s.hit = Some(t[j]);
                     }
                     if !full {
@@ -259,10 +262,9 @@ impl<M: Model> ViewRenderer<M> {
                             break;
                         }
                     } else if !s.acc.is_opaque() {
-                        let before = s.acc.finish([0.0; 3]).transmittance;
-                        s.acc.push(sigma[j], delta[j], t[j], rgb[j]);
+                        let w = s.acc.push(sigma[j], delta[j], t[j], rgb[j]);
                         if !beta.is_empty() {
-                            beta_acc[r as usize] += (before - s.acc.finish([0.0; 3]).transmittance) * beta[j];
+                            beta_acc[r as usize] += w * beta[j];
                         }
                     }
                 }
