@@ -11,8 +11,8 @@ pub const USAGE: &str = "usage: rnerf <command> [options]
 
 commands:
   train  --data DIR --out MODEL [--steps N] [--rays N] [--log2t N] [--seed S] [--threads N]
-         [--split NAME] [--csv FILE] [--background BG_MODEL [--mix mixnet|sum]
-         [--density-mix raw|activated]]
+         [--split NAME] [--csv FILE] [--lr LR] [--distortion L] [--background BG_MODEL [--mix mixnet|sum]
+         [--density-mix raw|activated] [--mixnet-encoding own|shared]]
          train a NeRF on DIR's transforms_<split>.json (default split: train); with --background,
          a Residual-NeRF (residual + Mixnet over the frozen background; --mix sum: Residual-NeRF-S)
   render --model MODEL --data DIR --out DIR [--split NAME] [--depth threshold|expected]
@@ -21,9 +21,16 @@ commands:
   eval   --model MODEL --data DIR [--split NAME] [--depth threshold|expected] [--m M | --m-raw S]
          [--crop frame|full|HALF] [--limit METRES] [--json] [--threads N]
          depth MAE / RMSE / hole rate inside the crops, and PSNR (default split: test)
-  demo   [--steps N] [--threads N] [--seed S]
-         fit the hash grid + MLP to a synthesised 3-D field and report held-out PSNR
-         (becomes the Residual-NeRF demo with issue #4)
+  compare --background DIR --scene DIR [--scene DIR ...] --out DIR [--background-model MODEL]
+         [--methods dex,residual,residual-s,...] [--steps N] [--rays N] [--log2t N]
+         [--seed S] [--eval-every N] [--m M | --m-raw S] [--threads N]
+         (methods: dex, residual, residual-activated, residual-shared, residual-activated-shared,
+         residual-s)
+         the paper's protocol: train the background on DIR (or load MODEL), then per scene Dex-NeRF
+         (and NeRF's expected depth), Residual-NeRF and Residual-NeRF-S; writes table.md, table.json,
+         curves.csv, <scene>/curves.png and <scene>/depth_<i>.png side by side
+  demo   [--out DIR] [--steps N] [--seed S] [--threads N]
+         synthesise a workspace and a glass object, then compare as above (default out: rnerf-demo)
   bench  [--json] [--reps N] [--log2t N] [--threads N]
          throughput of the hot kernels on this machine (one JSON object with --json)
   help   this text
@@ -82,6 +89,12 @@ pub enum Command {
         background: Option<PathBuf>,
         /// How background and residual mix (`--mix`, `--density-mix`); default Mixnet, raw.
         mix: Option<crate::field::mix::MixKind>,
+        /// The Mixnet's encoding (`--mixnet-encoding`); default its own grid.
+        mixnet: Option<crate::field::mixnet::MixnetEncoding>,
+        /// Weight of the distortion loss (`--distortion`, 0 turns it off).
+        distortion: Option<f32>,
+        /// Base learning rate (`--lr`).
+        lr: Option<f32>,
     },
     /// `rnerf render`.
     Render {
@@ -117,8 +130,37 @@ pub enum Command {
         /// Worker threads (`--threads`).
         threads: Option<usize>,
     },
+    /// `rnerf compare`.
+    Compare {
+        /// Background dataset folder (`--background`).
+        background: PathBuf,
+        /// A trained background model to use instead of training one (`--background-model`).
+        background_model: Option<PathBuf>,
+        /// Scene dataset folders (`--scene`, repeatable).
+        scenes: Vec<PathBuf>,
+        /// Output folder (`--out`), created if missing.
+        out: PathBuf,
+        /// Methods (`--methods`, default the paper's: dex, residual, residual-s).
+        methods: Vec<crate::compare::Method>,
+        /// Steps per method (`--steps`).
+        steps: Option<u32>,
+        /// Rays per step (`--rays`).
+        rays: Option<usize>,
+        /// log2 of the hash-table size (`--log2t`).
+        log2t: Option<u32>,
+        /// Seed (`--seed`).
+        seed: Option<u64>,
+        /// Steps between points of the speed curves (`--eval-every`).
+        eval_every: Option<u32>,
+        /// Threshold of threshold depth (`--m`, `--m-raw`).
+        m: crate::render::DensityThreshold,
+        /// Worker threads (`--threads`).
+        threads: Option<usize>,
+    },
     /// `rnerf demo`.
     Demo {
+        /// Output folder (`--out`, default `rnerf-demo`).
+        out: Option<PathBuf>,
         /// Training steps (`--steps`).
         steps: Option<u32>,
         /// Seed (`--seed`).
@@ -187,10 +229,28 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             "background",
             "mix",
             "density-mix",
+            "mixnet-encoding",
+            "distortion",
+            "lr",
         ],
         "render" => &["model", "data", "out", "split", "depth", "m", "m-raw", "threads"],
         "eval" => &["model", "data", "split", "depth", "m", "m-raw", "crop", "limit", "json", "threads"],
-        "demo" => &["steps", "seed", "threads"],
+        "compare" => &[
+            "background",
+            "background-model",
+            "scene",
+            "out",
+            "methods",
+            "steps",
+            "rays",
+            "log2t",
+            "seed",
+            "eval-every",
+            "m",
+            "m-raw",
+            "threads",
+        ],
+        "demo" => &["out", "steps", "seed", "threads"],
         "bench" => &["json", "reps", "log2t", "threads"],
         other => return Err(err(format!("unknown command '{other}' (try 'rnerf help')"))),
     };
@@ -219,6 +279,9 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             csv: f.csv.clone(),
             background: f.background.clone(),
             mix: f.mix_kind()?,
+            mixnet: f.mixnet_encoding()?,
+            distortion: f.distortion,
+            lr: f.lr,
         },
         "render" => Command::Render {
             model: f.need_path("model", &command)?,
@@ -238,7 +301,28 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             json: f.json,
             threads,
         },
-        "demo" => Command::Demo { steps: f.steps, seed: f.seed, threads },
+        "compare" => Command::Compare {
+            background: f
+                .background
+                .clone()
+                .ok_or_else(|| err("compare: --background is required (try 'rnerf help')"))?,
+            background_model: f.background_model.clone(),
+            scenes: if f.scenes.is_empty() {
+                return Err(err("compare: --scene is required (try 'rnerf help')"));
+            } else {
+                f.scenes.clone()
+            },
+            out: f.need_path("out", &command)?,
+            methods: f.methods.clone().unwrap_or_else(crate::compare::Method::paper),
+            steps: f.steps,
+            rays: f.rays,
+            log2t: f.log2t,
+            seed: f.seed,
+            eval_every: f.eval_every,
+            m: f.depth()?.threshold(),
+            threads,
+        },
+        "demo" => Command::Demo { out: f.out.clone(), steps: f.steps, seed: f.seed, threads },
         _ => Command::Bench { json: f.json, reps: f.reps, log2t: f.log2t, threads },
     })
 }
@@ -266,6 +350,13 @@ struct Flags {
     background: Option<PathBuf>,
     mix: Option<String>,
     density_mix: Option<String>,
+    mixnet_encoding: Option<String>,
+    distortion: Option<f32>,
+    lr: Option<f32>,
+    background_model: Option<PathBuf>,
+    scenes: Vec<PathBuf>,
+    methods: Option<Vec<crate::compare::Method>>,
+    eval_every: Option<u32>,
 }
 
 impl Flags {
@@ -277,6 +368,23 @@ impl Flags {
             "model" => self.model = Some(path(p, name)?),
             "csv" => self.csv = Some(path(p, name)?),
             "background" => self.background = Some(path(p, name)?),
+            "background-model" => self.background_model = Some(path(p, name)?),
+            "scene" => self.scenes.push(path(p, name)?),
+            "eval-every" => self.eval_every = Some(positive(p, name)?),
+            "methods" => {
+                let s = text(p, name)?;
+                let mut methods = Vec::new();
+                for m in s.split(',') {
+                    let method = crate::compare::Method::parse(m).ok_or_else(|| {
+                        err(format!("--methods: '{m}' is not one of {}", crate::compare::Method::names()))
+                    })?;
+                    if methods.contains(&method) {
+                        return Err(err(format!("--methods: '{m}' given twice")));
+                    }
+                    methods.push(method);
+                }
+                self.methods = Some(methods);
+            }
             "mix" => {
                 let s = text(p, name)?;
                 if s != "mixnet" && s != "sum" {
@@ -290,6 +398,13 @@ impl Flags {
                     return Err(err(format!("--density-mix: '{s}' is not 'raw' or 'activated'")));
                 }
                 self.density_mix = Some(s);
+            }
+            "mixnet-encoding" => {
+                let s = text(p, name)?;
+                if s != "own" && s != "shared" {
+                    return Err(err(format!("--mixnet-encoding: '{s}' is not 'own' or 'shared'")));
+                }
+                self.mixnet_encoding = Some(s);
             }
             "split" => {
                 let s = text(p, name)?;
@@ -326,6 +441,14 @@ impl Flags {
             "m" => self.m = Some(finite(p, name, 0.0, 1e9)?),
             "m-raw" => self.m_raw = Some(finite(p, name, -1e3, 1e3)?),
             "limit" => self.limit = Some(finite(p, name, 0.0, 1e6)?),
+            "lr" => self.lr = Some(finite(p, name, 0.0, 1.0)?),
+            "distortion" => {
+                let v: f32 = number(p, name)?;
+                if !(v.is_finite() && (0.0..=1.0).contains(&v)) {
+                    return Err(err(format!("--distortion: {v} is outside [0, 1]")));
+                }
+                self.distortion = Some(v);
+            }
             "crop" => {
                 let s = text(p, name)?;
                 self.crop = Some(match s.as_str() {
@@ -368,6 +491,18 @@ impl Flags {
             _ if self.background.is_some() => Some(MixKind::Mixnet(density)),
             _ => None,
         })
+    }
+
+    fn mixnet_encoding(&self) -> Result<Option<crate::field::mixnet::MixnetEncoding>, CliError> {
+        use crate::field::mixnet::MixnetEncoding;
+        match self.mixnet_encoding.as_deref() {
+            None => Ok(None),
+            Some(_) if self.background.is_none() || self.mix.as_deref() == Some("sum") => {
+                Err(err("--mixnet-encoding needs --background and a Mixnet (not --mix sum)"))
+            }
+            Some("shared") => Ok(Some(MixnetEncoding::Shared)),
+            Some(_) => Ok(Some(MixnetEncoding::default())),
+        }
     }
 
     fn depth(&self) -> Result<DepthChoice, CliError> {
@@ -452,8 +587,16 @@ mod tests {
         );
         assert_eq!(
             parse(args("demo --steps=20 --threads 1")),
-            Ok(Command::Demo { steps: Some(20), seed: None, threads: Some(1) })
+            Ok(Command::Demo { out: None, steps: Some(20), seed: None, threads: Some(1) })
         );
+        match parse(args("compare --background b --scene s1 --scene s2 --out o --methods dex,residual-s --m 5")) {
+            Ok(Command::Compare { scenes, methods, m, .. }) => {
+                assert_eq!(scenes, [PathBuf::from("s1"), PathBuf::from("s2")]);
+                assert_eq!(methods.len(), 2);
+                assert_eq!(m, crate::render::DensityThreshold::Sigma(5.0));
+            }
+            other => panic!("compare parsed as {other:?}"),
+        }
         for (bad, needle) in [
             ("bench --log2t 40", "--log2t: 40 is outside"),
             ("bench --reps 0", "--reps: must be at least 1"),
@@ -472,6 +615,13 @@ mod tests {
             ("train --data d --out m --background b --mix sum --density-mix raw", "applies to --mix mixnet"),
             ("train --data d --out m --background b --mix blend", "--mix: 'blend'"),
             ("trian", "unknown command 'trian'"),
+            ("compare --background b --out o", "--scene is required"),
+            ("train --data d --out m --mixnet-encoding shared", "needs --background"),
+            ("train --data d --out m --background b --mix sum --mixnet-encoding shared", "not --mix sum"),
+            ("train --data d --out m --background b --mixnet-encoding both", "--mixnet-encoding: 'both'"),
+            ("compare --background b --scene s --out o --methods dex,nerf", "--methods: 'nerf'"),
+            ("compare --background b --scene s --out o --methods dex,dex", "given twice"),
+            ("compare --background b --scene s --out o --depth expected", "unexpected argument '--depth'"),
             ("--json", "expected a command"),
         ] {
             let e = parse(args(bad)).unwrap_err();

@@ -35,8 +35,8 @@
 pub mod app;
 pub mod bench;
 pub mod cli;
+pub mod compare;
 pub mod data;
-pub mod demo;
 pub mod encoding;
 pub mod eval;
 pub mod field;

@@ -5,6 +5,7 @@ mod common;
 
 use common::cases;
 use proptest::prelude::*;
+use residual_nerf::render::distortion::distortion_backward;
 use residual_nerf::render::{composite_ray, composite_ray_backward, weights_from_density, EARLY_STOP_TRANSMITTANCE};
 
 /// A ray whose optical depth stays below 8, so T never reaches the early stop.
@@ -46,8 +47,48 @@ fn composite_f64(sigma: &[f64], delta: &[f32], rgb: &[[f64; 3]], bg: [f32; 3]) -
     c
 }
 
+/// f64 distortion loss straight from its definition (O(n²)).
+fn distortion_f64(sigma: &[f64], delta: &[f32], t: &[f32]) -> f64 {
+    let mut trans = 1.0f64;
+    let mut w = Vec::new();
+    for i in 0..sigma.len() {
+        let keep = (-sigma[i] * delta[i] as f64).exp();
+        w.push(trans * (1.0 - keep));
+        trans *= keep;
+    }
+    let mut l = 0.0;
+    for i in 0..w.len() {
+        for j in 0..w.len() {
+            l += w[i] * w[j] * (t[i] as f64 - t[j] as f64).abs();
+        }
+        l += w[i] * w[i] * delta[i] as f64 / 3.0;
+    }
+    l
+}
+
 proptest! {
     #![proptest_config(cases(64))]
+
+    /// The distortion loss and its ∂L/∂σ against the f64 definition and central differences;
+    /// the gradient is added to what `d_sigma` held.
+    #[test]
+    fn distortion_matches_its_definition_and_finite_differences((s, d, t, _c) in ray(24), scale in 0.1f32..3.0) {
+        let mut ds = vec![0.25; s.len()];
+        let mut scratch = Vec::new();
+        let l = distortion_backward(&s, &d, &t, scale, &mut ds, &mut scratch);
+        let s64: Vec<f64> = s.iter().map(|&v| v as f64).collect();
+        let want = distortion_f64(&s64, &d, &t);
+        prop_assert!((l as f64 - want).abs() < 1e-5 + 1e-4 * want.abs(), "L {} vs {}", l, want);
+        let h = 1e-6;
+        for k in 0..s.len() {
+            let (mut up, mut dn) = (s64.clone(), s64.clone());
+            up[k] += h;
+            dn[k] -= h;
+            let fd = scale as f64 * (distortion_f64(&up, &d, &t) - distortion_f64(&dn, &d, &t)) / (2.0 * h);
+            let got = ds[k] as f64 - 0.25;
+            prop_assert!((got - fd).abs() < 1e-4 + 1e-3 * fd.abs(), "dσ[{}]: {} vs {}", k, got, fd);
+        }
+    }
 
     /// Σw + T_final = 1, w ≥ 0, T non-increasing, opacity = 1 − T; empty rays included.
     #[test]
@@ -126,6 +167,22 @@ proptest! {
             }
         }
     }
+}
+
+/// Concentrating the same opacity in one sample lowers the distortion loss; one sample alone
+/// costs exactly w²δ/3.
+#[test]
+fn distortion_prefers_compact_weights() {
+    let mut scratch = Vec::new();
+    let (d, t) = (vec![0.1f32; 10], (0..10).map(|i| 1.0 + 0.1 * i as f32).collect::<Vec<_>>());
+    let mut sink = vec![0.0; 10];
+    let spread = distortion_backward(&[1.0; 10], &d, &t, 1.0, &mut sink, &mut scratch);
+    let mut compact = vec![0.0f32; 10];
+    compact[4] = 10.0; // the same optical depth (1.0) in one sample
+    let one = distortion_backward(&compact, &d, &t, 1.0, &mut sink, &mut scratch);
+    let w = 1.0 - (-1.0f32).exp();
+    assert!((one - w * w * 0.1 / 3.0).abs() < 1e-6, "{one}");
+    assert!(one < spread / 5.0, "compact {one} vs spread {spread}");
 }
 
 /// The worked example of the module docs.

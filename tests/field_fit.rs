@@ -1,8 +1,8 @@
 //! End to end through every kernel: hash grid → MLP → MSE → backward → Adam (fp16 mirror)
 //! fits a procedural 3-D field; and the same seed gives the same bits on any thread count.
 
-use residual_nerf::demo::{fit_field, FieldFitConfig};
 use residual_nerf::simd::Isa;
+use residual_nerf::train::field_fit::{fit_field, FieldFitConfig};
 
 fn small() -> FieldFitConfig {
     FieldFitConfig { steps: 150, batch: 4096, log2_table_size: 14, seed: 11 }

@@ -133,6 +133,7 @@ fn broken_model_files_are_refused_with_one_line_errors() {
 #[test]
 fn residual_model_round_trips_with_its_background_embedded() {
     use residual_nerf::field::mix::{DensityMix, MixKind};
+    use residual_nerf::field::mixnet::MixnetEncoding;
     use residual_nerf::field::residual::ResidualConfig;
     use residual_nerf::io::{load_model, save_residual, LoadedModel};
     use residual_nerf::train::trainer::train_residual;
@@ -141,12 +142,15 @@ fn residual_model_round_trips_with_its_background_embedded() {
     let mut cfg = TrainConfig::with_steps(10);
     cfg.rays_per_step = 128;
     cfg.occupancy = bg.occupancy.config().clone();
-    for kind in [MixKind::Mixnet(DensityMix::Raw), MixKind::Mixnet(DensityMix::Activated), MixKind::Sum] {
-        let config = ResidualConfig {
-            residual: bg.field.config().clone(),
-            kind,
-            mixnet_grid: HashGridConfig { levels: 2, log2_table_size: 8, base_resolution: 4, finest_resolution: 8 },
-        };
+    let own =
+        MixnetEncoding::Own(HashGridConfig { levels: 2, log2_table_size: 8, base_resolution: 4, finest_resolution: 8 });
+    for (kind, mixnet) in [
+        (MixKind::Mixnet(DensityMix::Raw), own),
+        (MixKind::Mixnet(DensityMix::Activated), own),
+        (MixKind::Mixnet(DensityMix::Raw), MixnetEncoding::Shared),
+        (MixKind::Sum, own),
+    ] {
+        let config = ResidualConfig { residual: bg.field.config().clone(), kind, mixnet };
         let model = train_residual(Isa::detect(), bg.clone(), &scene.views, config, &cfg, 0, |_| {});
         assert!(model.field.background.params == bg.params, "training must not touch the background");
         let dir = scratch("residual");
@@ -156,6 +160,7 @@ fn residual_model_round_trips_with_its_background_embedded() {
             panic!("{kind:?}: loaded as a plain NeRF")
         };
         assert_eq!(back.field.kind(), kind);
+        assert_eq!(back.field.mixnet_encoding(), mixnet);
         assert!(back.params == model.params && back.field.background.params == bg.params);
         assert_eq!(back.occupancy.values(), model.occupancy.values());
         // A residual file is not a plain NeRF.

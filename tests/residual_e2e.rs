@@ -8,7 +8,7 @@ use residual_nerf::data::workspace::{self, SKY};
 use residual_nerf::encoding::HashGridConfig;
 use residual_nerf::eval::DepthErrors;
 use residual_nerf::field::mix::{DensityMix, MixKind};
-use residual_nerf::field::mixnet::default_mixnet_grid;
+use residual_nerf::field::mixnet::MixnetEncoding;
 use residual_nerf::field::residual::ResidualConfig;
 use residual_nerf::field::NerfConfig;
 use residual_nerf::render::view::{render_view, Scene};
@@ -42,7 +42,7 @@ fn residual_nerf_beats_dex_nerf_in_the_glass_crop() {
     let background = train_nerf(isa, &bg_views.views, field.clone(), &cfg, 0, |_| {});
     let dex = train_nerf(isa, &scene_views.views, field.clone(), &cfg, 0, |_| {});
     let config =
-        ResidualConfig { residual: field, kind: MixKind::Mixnet(DensityMix::Raw), mixnet_grid: default_mixnet_grid() };
+        ResidualConfig { residual: field, kind: MixKind::Mixnet(DensityMix::Raw), mixnet: MixnetEncoding::default() };
     let residual = train_residual(isa, background, &scene_views.views, config, &cfg, 0, |_| {});
     let m = DensityThreshold::Sigma(3.0);
     let (mut e_dex, mut e_res) = (DepthErrors::default(), DepthErrors::default());

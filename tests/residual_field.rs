@@ -5,6 +5,7 @@
 use glam::Vec3;
 use residual_nerf::encoding::HashGridConfig;
 use residual_nerf::field::mix::{DensityMix, MixKind};
+use residual_nerf::field::mixnet::MixnetEncoding;
 use residual_nerf::field::residual::{ResidualConfig, ResidualContext, ResidualField, ResidualParams};
 use residual_nerf::field::{Nerf, NerfConfig, NerfField};
 use residual_nerf::render::{Aabb, OccupancyConfig, OccupancyGrid};
@@ -49,14 +50,18 @@ fn top(g: &[f32], k: usize) -> Vec<usize> {
 #[test]
 fn residual_gradients_match_finite_differences() {
     let isa = Isa::detect();
-    for kind in [MixKind::Mixnet(DensityMix::Activated), MixKind::Mixnet(DensityMix::Raw), MixKind::Sum] {
+    let own =
+        MixnetEncoding::Own(HashGridConfig { levels: 2, log2_table_size: 6, base_resolution: 4, finest_resolution: 8 });
+    for (kind, mixnet) in [
+        (MixKind::Mixnet(DensityMix::Activated), own),
+        (MixKind::Mixnet(DensityMix::Raw), own),
+        (MixKind::Mixnet(DensityMix::Activated), MixnetEncoding::Shared),
+        (MixKind::Mixnet(DensityMix::Raw), MixnetEncoding::Shared),
+        (MixKind::Sum, own),
+    ] {
         let mut rng = Rng::new(3);
         let bg = background(&mut rng);
-        let cfg = ResidualConfig {
-            residual: NerfConfig { grid: grid(), aabb: aabb() },
-            kind,
-            mixnet_grid: HashGridConfig { levels: 2, log2_table_size: 6, base_resolution: 4, finest_resolution: 8 },
-        };
+        let cfg = ResidualConfig { residual: NerfConfig { grid: grid(), aabb: aabb() }, kind, mixnet };
         let f = ResidualField::new(bg.clone(), cfg);
         let mut p = f.init_params(&mut rng);
         p.residual.grid.master.iter_mut().for_each(|v| *v = rng.uniform(-1.0, 1.0));
@@ -94,7 +99,7 @@ fn residual_gradients_match_finite_differences() {
             let tol = 0.05 * fd.abs().max(analytic.abs() as f64) + 2e-3;
             assert!(
                 (analytic as f64 - fd).abs() <= tol,
-                "{kind:?} {name}: analytic {analytic} vs finite difference {fd}"
+                "{kind:?} {mixnet:?} {name}: analytic {analytic} vs finite difference {fd}"
             );
         };
         for i in top(&g.residual.grid, 3) {
@@ -135,6 +140,11 @@ fn residual_gradients_match_finite_differences() {
             continue;
         }
         assert!(g.mixnet.mlp.iter().any(|&v| v != 0.0), "{kind:?}: the Mixnet must be trained");
+        if mixnet == MixnetEncoding::Shared {
+            // Its dL/dh(x) is in the residual grid's gradient, checked against finite
+            // differences of the whole mixed field above.
+            assert!(g.mixnet.grid.is_empty(), "a shared Mixnet has no grid of its own");
+        }
         for i in top(&g.mixnet.grid, 2) {
             check(
                 "mixnet grid",

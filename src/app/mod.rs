@@ -2,27 +2,57 @@
 //! [`run`]. Every error is one line naming the file, frame and field; nothing is written until
 //! the inputs have been read and checked, and every file is written atomically.
 
+mod compare;
 mod eval;
 mod progress;
 mod render;
 mod train;
 
+pub use compare::{compare_and_write, demo_config, train_background, SceneData, DEMO};
 pub use eval::{evaluate, EvalReport};
 pub use progress::Progress;
 pub use train::{default_train_config, TRAIN_RAYS, TRAIN_STEPS};
 
 use crate::bench::{self, BenchOptions};
 use crate::cli::Command;
-use crate::demo::{fit_field, FieldFitConfig};
-use crate::simd::Isa;
 
 /// Runs a parsed command.
 pub fn run(command: Command) -> Result<(), String> {
     match command {
         Command::Help => println!("{}", crate::cli::USAGE),
-        Command::Train { data, out, split, steps, rays, log2t, seed, threads, csv, background, mix } => {
+        Command::Train {
+            data,
+            out,
+            split,
+            steps,
+            rays,
+            log2t,
+            seed,
+            threads,
+            csv,
+            background,
+            mix,
+            mixnet,
+            distortion,
+            lr,
+        } => {
             set_threads(threads)?;
-            train::run(&train::TrainArgs { data, out, split, steps, rays, log2t, seed, csv, background, mix })?;
+            let args = train::TrainArgs {
+                data,
+                out,
+                split,
+                steps,
+                rays,
+                log2t,
+                seed,
+                csv,
+                background,
+                mix,
+                mixnet,
+                distortion,
+                lr,
+            };
+            train::run(&args)?;
         }
         Command::Render { model, data, out, split, depth, threads } => {
             set_threads(threads)?;
@@ -47,17 +77,38 @@ pub fn run(command: Command) -> Result<(), String> {
                 print!("{}", report.to_table());
             }
         }
-        Command::Demo { steps, seed, threads } => {
+        Command::Compare {
+            background,
+            background_model,
+            scenes,
+            out,
+            methods,
+            steps,
+            rays,
+            log2t,
+            seed,
+            eval_every,
+            m,
+            threads,
+        } => {
             set_threads(threads)?;
-            let defaults = FieldFitConfig::default();
-            let cfg = FieldFitConfig {
-                steps: steps.unwrap_or(defaults.steps),
-                seed: seed.unwrap_or(defaults.seed),
-                ..defaults
-            };
-            eprintln!("rnerf demo: fitting a synthesised 3-D field ({} steps, cpu level {})", cfg.steps, Isa::detect());
-            let report = fit_field(&cfg, Isa::detect(), |line| eprintln!("{line}"));
-            println!("{report}");
+            compare::run(&compare::CompareArgs {
+                background,
+                background_model,
+                scenes,
+                out,
+                methods,
+                steps,
+                rays,
+                log2t,
+                seed,
+                eval_every,
+                m,
+            })?;
+        }
+        Command::Demo { out, steps, seed, threads } => {
+            set_threads(threads)?;
+            compare::demo(&out.unwrap_or_else(|| "rnerf-demo".into()), steps, seed)?;
         }
     }
     Ok(())

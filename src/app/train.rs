@@ -4,7 +4,7 @@ use super::{check_output_file, Progress};
 use crate::data::{AabbSource, Dataset, LoadOptions};
 use crate::encoding::HashGridConfig;
 use crate::field::mix::{DensityMix, MixKind};
-use crate::field::mixnet::default_mixnet_grid;
+use crate::field::mixnet::MixnetEncoding;
 use crate::field::residual::ResidualConfig;
 use crate::field::NerfConfig;
 use crate::io::{load_model, save_nerf, save_residual, write_atomic, LoadedModel};
@@ -33,6 +33,9 @@ pub struct TrainArgs {
     pub csv: Option<PathBuf>,
     pub background: Option<PathBuf>,
     pub mix: Option<MixKind>,
+    pub mixnet: Option<MixnetEncoding>,
+    pub distortion: Option<f32>,
+    pub lr: Option<f32>,
 }
 
 /// The trainer settings `rnerf train` uses for `steps` steps (its defaults, documented in the
@@ -102,13 +105,16 @@ pub(super) fn run(a: &TrainArgs) -> Result<(), String> {
     let mut cfg = default_train_config(a.steps.unwrap_or(TRAIN_STEPS));
     cfg.rays_per_step = a.rays.unwrap_or(cfg.rays_per_step);
     cfg.seed = a.seed.unwrap_or(cfg.seed);
+    cfg.distortion = a.distortion.unwrap_or(cfg.distortion);
+    cfg.schedule.base = a.lr.unwrap_or(cfg.schedule.base);
     cfg.background = opts.background;
     let isa = Isa::detect();
     eprintln!(
-        "rnerf train: {} steps x {} rays, log2 T = {}, seed {}, cpu level {isa}, {} threads",
+        "rnerf train: {} steps x {} rays, log2 T = {}, distortion {}, seed {}, cpu level {isa}, {} threads",
         cfg.steps,
         cfg.rays_per_step,
         field.grid.log2_table_size,
+        cfg.distortion,
         cfg.seed,
         rayon::current_num_threads()
     );
@@ -143,6 +149,8 @@ pub(super) fn run(a: &TrainArgs) -> Result<(), String> {
         ("train_steps", cfg.steps.to_string()),
         ("train_rays_per_step", cfg.rays_per_step.to_string()),
         ("train_seed", cfg.seed.to_string()),
+        ("train_distortion", cfg.distortion.to_string()),
+        ("train_lr", cfg.schedule.base.to_string()),
         ("train_data", a.data.display().to_string()),
         ("train_split", a.split.clone()),
     ];
@@ -154,8 +162,12 @@ pub(super) fn run(a: &TrainArgs) -> Result<(), String> {
         }
         Some(bg) => {
             let kind = a.mix.unwrap_or(MixKind::Mixnet(DensityMix::Raw));
-            eprintln!("rnerf train: residual model over {} ({kind:?})", a.background.as_ref().unwrap().display());
-            let config = ResidualConfig { residual: field, kind, mixnet_grid: default_mixnet_grid() };
+            let mixnet = a.mixnet.unwrap_or_default();
+            eprintln!(
+                "rnerf train: residual model over {} ({kind:?}, Mixnet encoding {mixnet:?})",
+                a.background.as_ref().unwrap().display()
+            );
+            let config = ResidualConfig { residual: field, kind, mixnet };
             let model = train_residual(isa, bg, &data.views, config, &cfg, 10, log);
             extra.push(("train_seconds", format!("{:.1}", progress.seconds())));
             extra.push(("background_file", a.background.as_ref().unwrap().display().to_string()));

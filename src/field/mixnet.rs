@@ -1,7 +1,10 @@
-//! The Mixnet Φ_mix (DESIGN §2.3): position → its own small hash grid → MLP (1 hidden layer of
-//! 32) → one logit `m`, β = sigmoid(m). Position only; trained (unlike the authors' code,
-//! whose Mixnet weights never reached the optimiser). Parallel like the NeRF field: grid
-//! encoding on the pool, MLP per fixed slot, gradients reduced in slot order.
+//! The Mixnet Φ_mix (DESIGN §2.3): position → features h(x) → MLP (1 hidden layer of 32) → one
+//! logit `m`, β = sigmoid(m). Position only; trained (unlike the authors' code, whose Mixnet
+//! weights never reached the optimiser). h(x) is either the Mixnet's own small hash grid
+//! ([`MixnetEncoding::Own`]) or the residual NeRF's grid features ([`MixnetEncoding::Shared`],
+//! the authors' code): then the caller passes the features in and adds the Mixnet's
+//! dL/dh(x) into the residual's encoding gradient. Parallel like the NeRF field: grid encoding
+//! on the pool, MLP per fixed slot, gradients reduced in slot order.
 
 use crate::encoding::{HashGrid, HashGridConfig, HashGridParams};
 use crate::mlp::{Activation, Mlp, MlpConfig, MlpContext, MlpParams, MlpWorkspace};
@@ -19,11 +22,27 @@ pub fn default_mixnet_grid() -> HashGridConfig {
     HashGridConfig { levels: 8, log2_table_size: 15, base_resolution: 16, finest_resolution: 512 }
 }
 
+/// Where the Mixnet's features h(x) come from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum MixnetEncoding {
+    /// Its own hash grid (default: [`default_mixnet_grid`]).
+    Own(HashGridConfig),
+    /// The residual NeRF's hash-grid features; the Mixnet's gradient trains the residual's table.
+    Shared,
+}
+
+impl Default for MixnetEncoding {
+    fn default() -> Self {
+        MixnetEncoding::Own(default_mixnet_grid())
+    }
+}
+
 /// The Mixnet's geometry and kernels.
 #[derive(Clone, Debug)]
 pub struct Mixnet {
     aabb: Aabb,
-    grid: HashGrid,
+    /// `None`: features come from the caller ([`MixnetEncoding::Shared`]).
+    grid: Option<HashGrid>,
     mlp: Mlp<32>,
 }
 
@@ -64,22 +83,32 @@ pub struct MixnetContext {
 }
 
 impl Mixnet {
-    /// A Mixnet over `aabb` with encoding `grid`.
-    pub fn new(aabb: Aabb, grid: HashGridConfig) -> Mixnet {
-        let grid = HashGrid::new(grid);
+    /// A Mixnet over `aabb` with `encoding`; `shared_width` is the width of the features a
+    /// shared encoding passes in (unused for [`MixnetEncoding::Own`]).
+    pub fn new(aabb: Aabb, encoding: MixnetEncoding, shared_width: usize) -> Mixnet {
+        let grid = match encoding {
+            MixnetEncoding::Own(g) => Some(HashGrid::new(g)),
+            MixnetEncoding::Shared => None,
+        };
         let mlp = Mlp::new(MlpConfig {
-            input: grid.features(),
+            input: grid.as_ref().map_or(shared_width, |g| g.features()),
             output: 1,
             hidden_layers: 1,
             hidden_activation: Activation::Relu,
             output_activation: Activation::None,
         });
+        assert!(grid.is_some() || mlp.input_stride() == shared_width, "mixnet: shared features must be padded rows");
         Mixnet { aabb, grid, mlp }
     }
 
-    /// The hash grid.
-    pub fn grid(&self) -> &HashGrid {
-        &self.grid
+    /// Its own hash grid (`None` when the encoding is shared).
+    pub fn grid(&self) -> Option<&HashGrid> {
+        self.grid.as_ref()
+    }
+
+    /// The encoding.
+    pub fn encoding(&self) -> MixnetEncoding {
+        self.grid.as_ref().map_or(MixnetEncoding::Shared, |g| MixnetEncoding::Own(*g.config()))
     }
 
     /// The MLP.
@@ -94,7 +123,10 @@ impl Mixnet {
 
     /// Fresh parameters. The output layer starts at zero, so β = ½ everywhere at first.
     pub fn init_params(&self, rng: &mut Rng) -> MixnetParams {
-        let grid = HashGridParams::init(&self.grid, rng);
+        let grid = match &self.grid {
+            Some(g) => HashGridParams::init(g, rng),
+            None => HashGridParams::from_master(Vec::new()),
+        };
         let mut mlp = self.mlp.init_params(rng);
         let last = *self.mlp.layers().last().expect("one output layer");
         mlp.weights_mut()[last.offset..last.offset + last.k * last.o].fill(0.0);
@@ -104,28 +136,40 @@ impl Mixnet {
 
     /// Zeroed gradients.
     pub fn zero_grads(&self) -> MixnetGrads {
-        MixnetGrads { grid: vec![0.0; self.grid.n_params()], mlp: vec![0.0; self.mlp.n_params()] }
+        let grid = self.grid.as_ref().map_or(0, |g| g.n_params());
+        MixnetGrads { grid: vec![0.0; grid], mlp: vec![0.0; self.mlp.n_params()] }
     }
 
-    /// Logits `m` (β = sigmoid(m)) at world `positions`, saving what backward needs.
+    /// Logits `m` (β = sigmoid(m)) at world `positions`, saving what backward needs. With a
+    /// shared encoding, `shared` holds the residual's features of those positions
+    /// (`positions.len()` rows); with its own grid it must be `None`.
     pub fn forward(
         &self,
         isa: Isa,
         params: &MixnetParams,
         positions: &[Vec3],
+        shared: Option<&[f32]>,
         logits: &mut [f32],
         ctx: &mut MixnetContext,
     ) {
         let n = positions.len();
         assert_eq!(logits.len(), n, "mixnet: output length differs from the sample count");
         ctx.n = n;
-        ctx.unit.clear();
-        ctx.unit.extend(positions.iter().map(|&p| self.aabb.to_unit(p).to_array()));
-        let w = self.grid.output_width();
-        ctx.enc.resize(n * w, 0.0);
-        self.grid.forward_par(isa, &params.grid.table, &ctx.unit, &mut ctx.enc);
         ctx.slots.resize_with(SLOTS, Slot::default);
-        let (enc, so) = (&ctx.enc, self.mlp.output_stride());
+        let enc = match (&self.grid, shared) {
+            (Some(grid), None) => {
+                ctx.unit.clear();
+                ctx.unit.extend(positions.iter().map(|&p| self.aabb.to_unit(p).to_array()));
+                ctx.enc.resize(n * grid.output_width(), 0.0);
+                grid.forward_par(isa, &params.grid.table, &ctx.unit, &mut ctx.enc);
+                &ctx.enc[..]
+            }
+            (None, Some(f)) => f,
+            _ => panic!("mixnet: shared features are given exactly when the encoding is shared"),
+        };
+        let w = self.mlp.input_stride();
+        assert_eq!(enc.len(), n * w, "mixnet: features are not {w} per sample");
+        let so = self.mlp.output_stride();
         let parts = split_rows(logits, n, 1);
         ctx.slots.par_iter_mut().zip(parts).enumerate().for_each(|(s, (slot, out))| {
             let r = slot_range(n, s);
@@ -136,12 +180,21 @@ impl Mixnet {
         });
     }
 
-    /// Back-propagates dL/dm of the last forward into `grads` per `mode`.
+    /// dL/dh(x) of the last backward with a shared encoding (`n × width`), for the caller to add
+    /// into the residual's encoding gradient.
+    pub fn feature_grad<'c>(&self, ctx: &'c MixnetContext) -> &'c [f32] {
+        &ctx.d_enc[..ctx.n * self.mlp.input_stride()]
+    }
+
+    /// Back-propagates dL/dm of the last forward into `grads` per `mode`; `shared` as given to
+    /// forward. With a shared encoding dL/dh(x) is left in [`Mixnet::feature_grad`].
+    #[allow(clippy::too_many_arguments)]
     pub fn backward(
         &self,
         isa: Isa,
         params: &MixnetParams,
         ctx: &mut MixnetContext,
+        shared: Option<&[f32]>,
         d_logits: &[f32],
         grads: &mut MixnetGrads,
         mode: GradientMode,
@@ -151,9 +204,9 @@ impl Mixnet {
         if mode == GradientMode::Ignore {
             return;
         }
-        let (w, so) = (self.grid.output_width(), self.mlp.output_stride());
+        let (w, so) = (self.mlp.input_stride(), self.mlp.output_stride());
         ctx.d_enc.resize(n * w, 0.0);
-        let enc = &ctx.enc;
+        let enc = shared.unwrap_or(&ctx.enc);
         let parts = split_rows(&mut ctx.d_enc, n, w);
         ctx.slots.par_iter_mut().zip(parts).enumerate().for_each(|(s, (slot, d_enc))| {
             let r = slot_range(n, s);
@@ -180,6 +233,8 @@ impl Mixnet {
             grads.mlp.fill(0.0);
         }
         accumulate_in_order(ctx.slots.iter().map(|s| s.g.as_slice()), &mut grads.mlp);
-        self.grid.backward_params(isa, &ctx.unit, &ctx.d_enc, &mut grads.grid, mode);
+        if let Some(grid) = &self.grid {
+            grid.backward_params(isa, &ctx.unit, &ctx.d_enc, &mut grads.grid, mode);
+        }
     }
 }

@@ -111,12 +111,17 @@ impl FieldContext {
     pub fn is_empty(&self) -> bool {
         self.n == 0
     }
+
+    /// The encoded features of the last forward or density pass (`n × encoding width`).
+    pub fn features(&self) -> &[f32] {
+        &self.enc
+    }
 }
 
 impl NerfField {
     /// The field of `config`.
     pub fn new(config: NerfConfig) -> NerfField {
-        let grid = HashGrid::new(config.grid.clone());
+        let grid = HashGrid::new(config.grid);
         // The grid pads its rows exactly as the MLP pads its input (both to 16).
         debug_assert_eq!(grid.output_width(), grid.features().div_ceil(16) * 16);
         let density = Mlp::new(MlpConfig {
@@ -272,6 +277,29 @@ impl NerfField {
         grads: &mut NerfGrads,
         mode: GradientMode,
     ) {
+        self.backward_with_feature_grad(isa, params, ctx, d_raw, d_rgb_raw, &[], grads, mode);
+    }
+
+    /// Width of the encoded features per sample ([`FieldContext::features`] rows).
+    pub fn encoding_width(&self) -> usize {
+        self.grid.output_width()
+    }
+
+    /// [`NerfField::backward`] when another network also read the encoded features (a Mixnet
+    /// sharing the residual's encoding): `feature_grad` (`n × encoding_width`, or empty) is its
+    /// dL/d(features), added before the grid's backward.
+    #[allow(clippy::too_many_arguments)]
+    pub fn backward_with_feature_grad(
+        &self,
+        isa: Isa,
+        params: &NerfParams,
+        ctx: &mut FieldContext,
+        d_raw: &[f32],
+        d_rgb_raw: &[[f32; 3]],
+        feature_grad: &[f32],
+        grads: &mut NerfGrads,
+        mode: GradientMode,
+    ) {
         let n = ctx.n;
         assert!(d_raw.len() == n && d_rgb_raw.len() == n, "field: gradient buffers differ from the sample count");
         if mode == GradientMode::Ignore {
@@ -338,6 +366,10 @@ impl NerfField {
         }
         accumulate_in_order(ctx.slots.iter().map(|s| s.g_colour.as_slice()), &mut grads.colour);
         accumulate_in_order(ctx.slots.iter().map(|s| s.g_density.as_slice()), &mut grads.density);
+        if !feature_grad.is_empty() {
+            assert_eq!(feature_grad.len(), ctx.d_enc.len(), "field: feature gradient is not n × encoding width");
+            ctx.d_enc.iter_mut().zip(feature_grad).for_each(|(d, g)| *d += g);
+        }
         self.grid.backward_params(isa, &ctx.unit, &ctx.d_enc, &mut grads.grid, mode);
     }
 }

@@ -4,9 +4,8 @@
 //! takes dL/dσ and dL/dc and fills gradients of the residual and the Mixnet only.
 
 use super::mix::{mix_backward, mix_forward, MixInput, MixKind, MixOutput};
-use super::mixnet::{Mixnet, MixnetContext, MixnetGrads, MixnetParams};
+use super::mixnet::{Mixnet, MixnetContext, MixnetEncoding, MixnetGrads, MixnetParams};
 use super::{FieldContext, Nerf, NerfConfig, NerfField, NerfGrads, NerfParams};
-use crate::encoding::HashGridConfig;
 use crate::rng::Rng;
 use crate::simd::Isa;
 use crate::GradientMode;
@@ -20,8 +19,9 @@ pub struct ResidualConfig {
     pub residual: NerfConfig,
     /// Mixing rule. Defaults to a Mixnet with raw density mixing.
     pub kind: MixKind,
-    /// Mixnet encoding. Defaults to [`super::mixnet::default_mixnet_grid`].
-    pub mixnet_grid: HashGridConfig,
+    /// Mixnet encoding: its own grid ([`super::mixnet::default_mixnet_grid`] by default) or
+    /// the residual's.
+    pub mixnet: MixnetEncoding,
 }
 
 /// The field: frozen background, residual, Mixnet.
@@ -97,8 +97,14 @@ impl ResidualField {
             config.residual.aabb,
             "residual: scene box differs from the background's"
         );
-        let mixnet = Mixnet::new(config.residual.aabb, config.mixnet_grid);
-        ResidualField { background, residual: NerfField::new(config.residual), mixnet, kind: config.kind }
+        let residual = NerfField::new(config.residual);
+        let mixnet = Mixnet::new(residual.config().aabb, config.mixnet, residual.encoding_width());
+        ResidualField { background, residual, mixnet, kind: config.kind }
+    }
+
+    /// The Mixnet's encoding.
+    pub fn mixnet_encoding(&self) -> MixnetEncoding {
+        self.mixnet.encoding()
     }
 
     /// The mixing rule.
@@ -156,7 +162,8 @@ impl ResidualField {
         }));
         self.residual.forward(isa, &params.residual, positions, dirs, &mut ctx.raw, &mut ctx.rgb_raw, &mut ctx.res);
         if matches!(self.kind, MixKind::Mixnet(_)) {
-            self.mixnet.forward(isa, &params.mixnet, positions, &mut ctx.logits, &mut ctx.mix);
+            let shared = self.shared_features(&ctx.res);
+            self.mixnet.forward(isa, &params.mixnet, positions, shared, &mut ctx.logits, &mut ctx.mix);
         }
         for (i, x) in ctx.inputs.iter_mut().enumerate() {
             (x.s_res, x.c_res, x.m) = (ctx.raw[i], ctx.rgb_raw[i], ctx.logits[i]);
@@ -188,7 +195,8 @@ impl ResidualField {
         bg.field.density(isa, &bg.params, positions, &mut ctx.raw, &mut ctx.bg);
         self.residual.density(isa, &params.residual, positions, &mut ctx.s_res, &mut ctx.res);
         if matches!(self.kind, MixKind::Mixnet(_)) {
-            self.mixnet.forward(isa, &params.mixnet, positions, &mut ctx.logits, &mut ctx.mix);
+            let shared = self.shared_features(&ctx.res);
+            self.mixnet.forward(isa, &params.mixnet, positions, shared, &mut ctx.logits, &mut ctx.mix);
         }
         for i in 0..n {
             let x =
@@ -251,17 +259,29 @@ impl ResidualField {
         if n == 0 {
             return;
         }
-        self.residual.backward(
+        // The Mixnet first: with a shared encoding its dL/dh(x) joins the residual's.
+        let mut feature_grad: &[f32] = &[];
+        if matches!(self.kind, MixKind::Mixnet(_)) {
+            let shared = self.shared_features(&ctx.res);
+            self.mixnet.backward(isa, &params.mixnet, &mut ctx.mix, shared, &ctx.d_logits, &mut grads.mixnet, mode);
+            if shared.is_some() {
+                feature_grad = self.mixnet.feature_grad(&ctx.mix);
+            }
+        }
+        self.residual.backward_with_feature_grad(
             isa,
             &params.residual,
             &mut ctx.res,
             &ctx.d_raw,
             &ctx.d_rgb_raw,
+            feature_grad,
             &mut grads.residual,
             mode,
         );
-        if matches!(self.kind, MixKind::Mixnet(_)) {
-            self.mixnet.backward(isa, &params.mixnet, &mut ctx.mix, &ctx.d_logits, &mut grads.mixnet, mode);
-        }
+    }
+
+    /// The residual's features of the last forward when the Mixnet shares them.
+    fn shared_features<'c>(&self, res: &'c FieldContext) -> Option<&'c [f32]> {
+        (self.mixnet.grid().is_none()).then(|| res.features())
     }
 }

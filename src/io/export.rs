@@ -12,7 +12,8 @@ use crate::render::{Intrinsics, Pose};
 use std::io::Cursor;
 use std::path::Path;
 
-fn png_bytes<P: image::PixelWithColorType>(img: image::ImageBuffer<P, Vec<P::Subpixel>>) -> Result<Vec<u8>, String>
+/// An image as PNG bytes.
+pub fn png_bytes<P: image::PixelWithColorType>(img: image::ImageBuffer<P, Vec<P::Subpixel>>) -> Result<Vec<u8>, String>
 where
     [P::Subpixel]: image::EncodableLayout,
 {
@@ -91,12 +92,19 @@ fn colour_map(x: f32) -> [u8; 3] {
     std::array::from_fn(|k| ((STOPS[i][k] * (1.0 - f) + STOPS[i + 1][k] * f) * 255.0).round() as u8)
 }
 
+/// The colour of z-depth `z` on a `[near, far]` scale (viridis, near dark), black for a hole.
+pub fn depth_colour(z: f32, near: f32, far: f32) -> [u8; 3] {
+    if z.is_finite() {
+        colour_map((z - near) / (far - near).max(1e-6))
+    } else {
+        [0, 0, 0]
+    }
+}
+
 /// Depth coloured over `[near, far]` (holes black), 8-bit RGB PNG.
 pub fn depth_vis_png_bytes(depth: &[f32], width: u32, height: u32, near: f32, far: f32) -> Result<Vec<u8>, String> {
     check(depth.len(), width, height);
-    let span = (far - near).max(1e-6);
-    let px: Vec<u8> =
-        depth.iter().flat_map(|&z| if z.is_finite() { colour_map((z - near) / span) } else { [0, 0, 0] }).collect();
+    let px: Vec<u8> = depth.iter().flat_map(|&z| depth_colour(z, near, far)).collect();
     png_bytes(image::RgbImage::from_raw(width, height, px).expect("sized above"))
 }
 

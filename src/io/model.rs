@@ -18,7 +18,7 @@
 use super::atomic::write_atomic;
 use crate::encoding::{HashGridConfig, HashGridParams};
 use crate::field::mix::{DensityMix, MixKind};
-use crate::field::mixnet::MixnetParams;
+use crate::field::mixnet::{MixnetEncoding, MixnetParams};
 use crate::field::residual::{ResidualConfig, ResidualField, ResidualModel, ResidualParams};
 use crate::field::{NerfConfig, NerfField, NerfParams};
 use crate::mlp::LayerShape;
@@ -325,8 +325,9 @@ fn mix_name(kind: MixKind) -> &'static str {
 
 /// Saves a residual model (`kind = "residual"`): the frozen background under `background.`,
 /// the residual NeRF (with the mixed field's occupancy grid) under `residual.`, the Mixnet
-/// under `mixnet.`, and `mix` / `mixnet_grid` metadata. The background is embedded, so the
-/// file is all a robot needs.
+/// under `mixnet.`, and `mix` / `mixnet_grid` metadata (`"shared"` when the Mixnet reads the
+/// residual's encoding; then there is no `mixnet.grid.params`). The background is embedded, so
+/// the file is all a robot needs.
 pub fn save_residual(path: &Path, m: &ResidualModel, extra: &[(&str, String)]) -> Result<(), String> {
     let at = |e: String| format!("{}: {e}", path.display());
     let mut w = ModelWriter::new("residual");
@@ -334,9 +335,14 @@ pub fn save_residual(path: &Path, m: &ResidualModel, extra: &[(&str, String)]) -
     w.nerf_parts("residual.", m.field.residual(), &m.params.residual, &m.occupancy).map_err(at)?;
     w.meta("mix", mix_name(m.field.kind()));
     let mixnet = m.field.mixnet();
-    w.meta("mixnet_grid", &grid_json(mixnet.grid().config()).to_string());
-    let entries = m.params.mixnet.grid.master.len() / 2;
-    w.tensor("mixnet.grid.params", vec![entries, 2], &m.params.mixnet.grid.master).map_err(at)?;
+    match mixnet.grid() {
+        Some(grid) => {
+            w.meta("mixnet_grid", &grid_json(grid.config()).to_string());
+            let entries = m.params.mixnet.grid.master.len() / 2;
+            w.tensor("mixnet.grid.params", vec![entries, 2], &m.params.mixnet.grid.master).map_err(at)?;
+        }
+        None => w.meta("mixnet_grid", "\"shared\""),
+    }
     w.mlp("mixnet", m.params.mixnet.mlp.weights(), mixnet.mlp().layers()).map_err(at)?;
     for (k, v) in extra {
         w.meta(k, v);
@@ -363,12 +369,17 @@ pub fn model_from_bytes(bytes: &[u8]) -> Result<LoadedModel, String> {
             };
             let g: Value =
                 serde_json::from_str(r.meta("mixnet_grid")?).map_err(|e| format!("metadata 'mixnet_grid': {e}"))?;
-            let mixnet_grid = parse_grid(&g).map_err(|e| format!("metadata 'mixnet_grid': {e}"))?;
-            let config = ResidualConfig { residual: res.field.config().clone(), kind, mixnet_grid };
+            let mixnet_encoding = match g.as_str() {
+                Some("shared") => MixnetEncoding::Shared,
+                _ => MixnetEncoding::Own(parse_grid(&g).map_err(|e| format!("metadata 'mixnet_grid': {e}"))?),
+            };
+            let config = ResidualConfig { residual: res.field.config().clone(), kind, mixnet: mixnet_encoding };
             let field = ResidualField::new(background, config);
             let mixnet = field.mixnet();
-            let entries = mixnet.grid().entries();
-            let grid = HashGridParams::from_master(r.tensor("mixnet.grid.params", &[entries, 2])?);
+            let grid = match mixnet.grid() {
+                Some(g) => HashGridParams::from_master(r.tensor("mixnet.grid.params", &[g.entries(), 2])?),
+                None => HashGridParams::from_master(Vec::new()),
+            };
             let mlp = mixnet.mlp_params_from(r.mlp("mixnet", mixnet.mlp().layers(), mixnet.mlp().n_params())?);
             let params = ResidualParams { residual: res.params, mixnet: MixnetParams { grid, mlp } };
             Ok(LoadedModel::Residual(Box::new(ResidualModel { field, params, occupancy: res.occupancy })))

@@ -5,6 +5,7 @@
 pub mod camera;
 pub mod composite;
 pub mod depth;
+pub mod distortion;
 pub mod occupancy;
 pub mod view;
 

@@ -11,6 +11,7 @@
 use crate::field::residual::{ResidualConfig, ResidualField, ResidualModel};
 pub use crate::field::Nerf;
 use crate::field::{NerfConfig, NerfField};
+use crate::render::distortion::distortion_backward;
 use crate::render::{
     composite_ray, composite_ray_backward, pixel_ray, Aabb, Intrinsics, OccupancyConfig, OccupancyGrid, PackedSamples,
     Pose, Ray, RayAccumulator,
@@ -52,7 +53,14 @@ pub struct TrainConfig {
     pub background: [f32; 3],
     /// Seed of initialisation and sampling. Defaults to 0.
     pub seed: u64,
+    /// Weight λ of the distortion loss (per ray, scene units; [`crate::render::distortion`]).
+    /// Defaults to [`DISTORTION`].
+    pub distortion: f32,
 }
+
+/// Default weight of the distortion loss: off — on the dev background it did not improve depth
+/// at the weights tried (README, "Decisions").
+pub const DISTORTION: f32 = 0.0;
 
 impl TrainConfig {
     /// Defaults for `steps` steps (the schedule scales with it).
@@ -71,6 +79,7 @@ impl TrainConfig {
             occupancy: OccupancyConfig::default(),
             background: [0.0; 3],
             seed: 0,
+            distortion: DISTORTION,
         }
     }
 }
@@ -93,7 +102,7 @@ pub struct StepStats {
     /// Mean samples per ray the occupancy grid let through (before dropping those behind
     /// the opaque point).
     pub marched_per_ray: f32,
-    /// Seconds since training began.
+    /// Seconds of training so far (time spent in the observer excluded).
     pub seconds: f64,
     /// Fraction of occupied cells.
     pub occupancy: f64,
@@ -215,7 +224,8 @@ pub fn train_nerf(
 ) -> Nerf {
     let aabb = field_config.aabb;
     let field = NerfField::new(field_config);
-    let (params, occupancy) = train_model(isa, &field, aabb, views, cfg, log_every, log);
+    let mut log = log;
+    let (params, occupancy) = train_model(isa, &field, aabb, views, cfg, log_every, |s, _, _| log(s));
     Nerf { field, params, occupancy }
 }
 
@@ -232,12 +242,16 @@ pub fn train_residual(
 ) -> ResidualModel {
     let aabb = config.residual.aabb;
     let field = ResidualField::new(background, config);
-    let (params, occupancy) = train_model(isa, &field, aabb, views, cfg, log_every, log);
+    let mut log = log;
+    let (params, occupancy) = train_model(isa, &field, aabb, views, cfg, log_every, |s, _, _| log(s));
     ResidualModel { field, params, occupancy }
 }
 
 /// Trains `model` on `views` inside `aabb` from fresh parameters (seeded by `cfg.seed`);
-/// returns the parameters and the occupancy grid. `log` receives stats every `log_every` steps.
+/// returns the parameters and the occupancy grid. `observe` receives the stats, parameters and
+/// occupancy grid after every `log_every`-th step and the last (0: never); the training clock
+/// ([`StepStats::seconds`]) stops while it runs, so an observer that evaluates the model (the
+/// speed curves of `rnerf compare`) does not count as training time.
 pub fn train_model<M: Model>(
     isa: Isa,
     model: &M,
@@ -245,7 +259,7 @@ pub fn train_model<M: Model>(
     views: &[View],
     cfg: &TrainConfig,
     log_every: u32,
-    mut log: impl FnMut(StepStats),
+    mut observe: impl FnMut(StepStats, &M::Params, &OccupancyGrid),
 ) -> (M::Params, OccupancyGrid) {
     assert!(!views.is_empty(), "train: no training views");
     // Denormals are ~100× slower on x86; every thread of the pool flushes them while training.
@@ -264,6 +278,7 @@ pub fn train_model<M: Model>(
     let mut buf = StepBuffers::default();
     let mut ctx = M::Context::default();
     let start = Instant::now();
+    let mut observing = std::time::Duration::ZERO;
     for step in 0..cfg.steps {
         if step % cfg.occupancy_interval.max(1) == 0 {
             let mut orng = Rng::stream(cfg.seed ^ 0x0CC, step as u64);
@@ -317,6 +332,7 @@ pub fn train_model<M: Model>(
             .zip(d_rgb_parts)
             .map(|((g, d_s), d_c)| {
                 let mut loss = 0.0f64;
+                let mut scratch = Vec::new();
                 let base = g.samples.start;
                 for ray in g.rays.clone() {
                     let (s0, cnt) = samples.rays[ray];
@@ -334,12 +350,22 @@ pub fn train_model<M: Model>(
                     composite_ray_backward(
                         &sigma[r.clone()],
                         &samples.delta[r.clone()],
-                        &rgb[r],
+                        &rgb[r.clone()],
                         &c,
                         err.map(|e| e * scale),
                         &mut d_s[local.clone()],
-                        &mut d_c[local],
+                        &mut d_c[local.clone()],
                     );
+                    if cfg.distortion > 0.0 {
+                        distortion_backward(
+                            &sigma[r.clone()],
+                            &samples.delta[r.clone()],
+                            &samples.t[r],
+                            cfg.distortion / cfg.rays_per_step as f32,
+                            &mut d_s[local],
+                            &mut scratch,
+                        );
+                    }
                 }
                 loss
             })
@@ -353,14 +379,17 @@ pub fn train_model<M: Model>(
         }
         model.after_step(&mut params);
         if log_every > 0 && ((step + 1) % log_every == 0 || step + 1 == cfg.steps) {
-            log(StepStats {
+            let stats = StepStats {
                 step,
                 loss: (loss / (3 * cfg.rays_per_step) as f64) as f32,
                 samples_per_ray: n as f32 / cfg.rays_per_step as f32,
                 marched_per_ray: marched as f32 / cfg.rays_per_step as f32,
-                seconds: start.elapsed().as_secs_f64(),
+                seconds: (start.elapsed() - observing).as_secs_f64(),
                 occupancy: occupancy.occupancy(),
-            });
+            };
+            let t = Instant::now();
+            observe(stats, &params, &occupancy);
+            observing += t.elapsed();
         }
     }
     rayon::broadcast(|ctx| crate::simd::fpmode::restore(modes[ctx.index()]));

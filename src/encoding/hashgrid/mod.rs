@@ -46,7 +46,7 @@ pub const PRIME_Z: u32 = 805_459_861;
 pub(crate) const CHUNK: usize = 256;
 
 /// Hash-grid hyper-parameters.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct HashGridConfig {
     /// Number of levels `L`. Defaults to 16.
     pub levels: usize,

@@ -1,9 +1,8 @@
-//! The interim demo: fit a procedural 3-D colour field with the hash grid and an MLP.
+//! A field fit: a procedural 3-D colour field learnt by the hash grid and an MLP.
 //!
 //! It runs every kernel the NeRF trainer stands on — hash-grid forward/backward, fused MLP
 //! forward/backward, Adam with the fp16 mirror, thread-independent gradient slots — on a
-//! target with a known answer, and reports held-out PSNR. (`rnerf demo` becomes the
-//! Residual-NeRF comparison once the rendering pipeline lands.)
+//! target with a known answer, and reports held-out PSNR (`tests/field_fit.rs`).
 
 use crate::encoding::{HashGrid, HashGridConfig, HashGridParams};
 use crate::mlp::{Activation, Mlp, MlpConfig, MlpContext, MlpParams, MlpWorkspace};

@@ -1,0 +1,296 @@
+//! `rnerf compare` (the paper's protocol on a dataset) and `rnerf demo` (the same on a
+//! synthesised workspace): both end in [`compare_and_write`].
+
+use super::{default_train_config, Progress, TRAIN_STEPS};
+use crate::compare::{self, CompareConfig, EvalSet, Method, SceneResult};
+use crate::data::workspace::{self, SKY};
+use crate::data::{AabbSource, Dataset, FrameType, LoadOptions};
+use crate::encoding::HashGridConfig;
+use crate::field::{Nerf, NerfConfig};
+use crate::io::{export, load_model, save_nerf, write_atomic, LoadedModel};
+use crate::render::{Aabb, DensityThreshold, OccupancyConfig};
+use crate::simd::Isa;
+use crate::train::trainer::{train_nerf, StepStats, TrainConfig, View};
+use serde_json::json;
+use std::path::{Path, PathBuf};
+
+/// Arguments of `rnerf compare`.
+pub struct CompareArgs {
+    pub background: PathBuf,
+    pub background_model: Option<PathBuf>,
+    pub scenes: Vec<PathBuf>,
+    pub out: PathBuf,
+    pub methods: Vec<Method>,
+    pub steps: Option<u32>,
+    pub rays: Option<usize>,
+    pub log2t: Option<u32>,
+    pub seed: Option<u64>,
+    pub eval_every: Option<u32>,
+    pub m: DensityThreshold,
+}
+
+/// One scene ready to compare.
+pub struct SceneData {
+    /// Name (folder name).
+    pub name: String,
+    /// Training views.
+    pub train: Vec<View>,
+    /// Test views with ground truth.
+    pub test: EvalSet,
+}
+
+fn same_box(a: &Aabb, b: &Aabb) -> bool {
+    (a.min - b.min).abs().max_element() <= 1e-5 && (a.max - b.max).abs().max_element() <= 1e-5
+}
+
+fn load_scene(dir: &Path, frame_type: FrameType, aabb: Option<&Aabb>) -> Result<(Dataset, EvalSet), String> {
+    let train_opts = LoadOptions { ground_truth: false, frame_type: Some(frame_type), ..Default::default() };
+    let train = Dataset::load(dir, "train", &train_opts).map_err(|e| e.to_string())?;
+    let test_opts = LoadOptions { frame_type: Some(frame_type), ..Default::default() };
+    let test = Dataset::load(dir, "test", &test_opts).map_err(|e| e.to_string())?;
+    if let Some(b) = aabb {
+        if train.aabb_source == AabbSource::File && !same_box(&train.aabb, b) {
+            return Err(format!(
+                "{}: field 'aabb' {:?}..{:?} differs from the background's scene box {:?}..{:?}",
+                train.json.display(),
+                train.aabb.min.to_array(),
+                train.aabb.max.to_array(),
+                b.min.to_array(),
+                b.max.to_array()
+            ));
+        }
+    }
+    let eval = EvalSet::from_dataset(&test)?;
+    Ok((train, eval))
+}
+
+fn scene_name(dir: &Path) -> String {
+    let name = dir.canonicalize().ok().and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()));
+    name.unwrap_or_else(|| "scene".into())
+}
+
+pub(super) fn run(a: &CompareArgs) -> Result<(), String> {
+    // Every input is read and checked before any training.
+    let background_model = match &a.background_model {
+        None => None,
+        Some(p) => match load_model(p).map_err(|e| format!("--background-model: {e}"))? {
+            LoadedModel::Nerf(n) => Some(*n),
+            LoadedModel::Residual(_) => {
+                return Err(format!("{}: --background-model: a residual model; expected a plain NeRF", p.display()))
+            }
+        },
+    };
+    let bg_opts = LoadOptions { ground_truth: false, frame_type: Some(FrameType::Background), ..Default::default() };
+    let bg_train = match &background_model {
+        Some(_) => None,
+        None => Some(Dataset::load(&a.background, "train", &bg_opts).map_err(|e| e.to_string())?),
+    };
+    let aabb = match (&background_model, &bg_train) {
+        (Some(m), _) => m.field.config().aabb,
+        (None, Some(d)) => d.aabb,
+        (None, None) => unreachable!("one of the two is loaded above"),
+    };
+    let mut scenes = Vec::new();
+    let mut names = std::collections::HashSet::new();
+    for dir in &a.scenes {
+        let (train, test) = load_scene(dir, FrameType::Scene, Some(&aabb))?;
+        let mut name = scene_name(dir);
+        while !names.insert(name.clone()) {
+            name.push('_');
+        }
+        scenes.push(SceneData { name, train: train.views, test });
+    }
+    std::fs::create_dir_all(&a.out).map_err(|e| format!("{}: --out: cannot create: {e}", a.out.display()))?;
+    let grid = HashGridConfig {
+        log2_table_size: a.log2t.unwrap_or(HashGridConfig::default().log2_table_size),
+        ..Default::default()
+    };
+    let mut train = default_train_config(a.steps.unwrap_or(TRAIN_STEPS));
+    train.rays_per_step = a.rays.unwrap_or(train.rays_per_step);
+    train.seed = a.seed.unwrap_or(train.seed);
+    train.background = LoadOptions::default().background;
+    let cfg = CompareConfig {
+        eval_every: a.eval_every.unwrap_or((train.steps / 20).max(1)),
+        train,
+        field: NerfConfig { grid, aabb },
+        mixnet_grid: crate::field::mixnet::default_mixnet_grid(),
+        m: a.m,
+    };
+    let isa = Isa::detect();
+    eprintln!(
+        "rnerf compare: {} scene(s), methods {}, {} steps x {} rays, log2 T = {}, cpu level {isa}, {} threads",
+        scenes.len(),
+        a.methods.iter().map(|m| m.name()).collect::<Vec<_>>().join(","),
+        cfg.train.steps,
+        cfg.train.rays_per_step,
+        cfg.field.grid.log2_table_size,
+        rayon::current_num_threads()
+    );
+    let background = match background_model {
+        Some(m) => m,
+        None => {
+            let data = bg_train.expect("loaded when no model was given");
+            let nerf = train_background(isa, &data.views, &cfg)?;
+            let path = a.out.join("background.safetensors");
+            save_nerf(&path, &nerf, &[("train_data", a.background.display().to_string())])?;
+            eprintln!("rnerf compare: wrote {}", path.display());
+            nerf
+        }
+    };
+    compare_and_write(isa, &background, &scenes, &a.methods, &cfg, &a.out)?;
+    Ok(())
+}
+
+/// Trains the background NeRF with the comparison's settings, showing progress.
+pub fn train_background(isa: Isa, views: &[View], cfg: &CompareConfig) -> Result<Nerf, String> {
+    let mut progress = Progress::new("background", cfg.train.steps as u64);
+    let nerf = train_nerf(isa, views, cfg.field.clone(), &cfg.train, 10, |s| {
+        progress.update(s.step as u64 + 1, &format!("PSNR {:.2} dB", -10.0 * (s.loss as f64).log10()))
+    });
+    Ok(nerf)
+}
+
+/// Runs every method on every scene and writes the results into `out`: `table.md` (also
+/// printed), `table.json`, `curves.csv`, and per scene `curves.png` and `depth_<i>.png`.
+pub fn compare_and_write(
+    isa: Isa,
+    background: &Nerf,
+    scenes: &[SceneData],
+    methods: &[Method],
+    cfg: &CompareConfig,
+    out: &Path,
+) -> Result<Vec<SceneResult>, String> {
+    let mut results = Vec::new();
+    for s in scenes {
+        let mut current: Option<(Method, Progress)> = None;
+        let mut log = |m: Method, st: &StepStats| {
+            if current.as_ref().is_none_or(|c| c.0 != m) {
+                current = Some((m, Progress::new(&format!("{} {}", s.name, m.name()), cfg.train.steps as u64)));
+            }
+            let p = &mut current.as_mut().expect("set above").1;
+            p.update(
+                st.step as u64 + 1,
+                &format!("PSNR {:.2} dB  {:.0} samples/ray", -10.0 * (st.loss as f64).log10(), st.samples_per_ray),
+            );
+        };
+        let r = compare::run_scene(isa, &s.name, background, &s.train, &s.test, methods, cfg, &mut log);
+        let dir = out.join(&r.name);
+        std::fs::create_dir_all(&dir).map_err(|e| format!("{}: cannot create: {e}", dir.display()))?;
+        export::write(&dir.join("curves.png"), compare::curves_png(&r))?;
+        for i in 0..s.test.views.len() {
+            export::write(&dir.join(format!("depth_{i}.png")), compare::depth_sheet_png(&r, &s.test, i))?;
+        }
+        results.push(r);
+        // Tables so far after every scene: a long run's finished scenes are never lost.
+        write_tables(&results, cfg, out)?;
+    }
+    let table = compare::table(&results);
+    println!("{table}");
+    eprintln!(
+        "rnerf: wrote {} (table.md, table.json, curves.csv, <scene>/curves.png, <scene>/depth_<i>.png)",
+        out.display()
+    );
+    Ok(results)
+}
+
+/// Writes `table.md`, `table.json` and `curves.csv` of `results` into `out`.
+fn write_tables(results: &[SceneResult], cfg: &CompareConfig, out: &Path) -> Result<(), String> {
+    let table = compare::table(results);
+    write_atomic(&out.join("table.md"), table.as_bytes())?;
+    write_atomic(&out.join("curves.csv"), compare::curves_csv(results).as_bytes())?;
+    let rows: Vec<serde_json::Value> = results
+        .iter()
+        .flat_map(|r| {
+            r.methods.iter().flat_map(move |m| {
+                let row = |method: &str, e: &crate::eval::DepthErrors| {
+                    json!({"scene": r.name, "method": method, "mae": e.mae(), "rmse": e.rmse(),
+                           "hole_rate": e.hole_rate(), "train_seconds": m.seconds, "psnr": m.psnr})
+                };
+                let mut v = vec![row(m.method.name(), &m.threshold)];
+                if m.method == Method::Dex {
+                    v.insert(0, row("nerf-expected", &m.expected));
+                }
+                v
+            })
+        })
+        .collect();
+    let doc = json!({"steps": cfg.train.steps, "rays_per_step": cfg.train.rays_per_step, "seed": cfg.train.seed,
+                     "log2_table_size": cfg.field.grid.log2_table_size, "threshold": format!("{:?}", cfg.m), "rows": rows});
+    write_atomic(&out.join("table.json"), serde_json::to_string_pretty(&doc).expect("plain JSON").as_bytes())
+}
+
+/// Settings of `rnerf demo`: a small workspace sized to finish in about two minutes on two
+/// cores (measured in the README).
+pub struct DemoSize {
+    /// Image side (pixels).
+    pub size: u32,
+    /// Training views (background and scene each).
+    pub views: usize,
+    /// Test views.
+    pub test_views: usize,
+    /// Steps per training run.
+    pub steps: u32,
+}
+
+/// The demo's default size.
+pub const DEMO: DemoSize = DemoSize { size: 40, views: 32, test_views: 4, steps: 400 };
+
+/// The demo's trainer and field: a small table and a coarse occupancy grid for a tiny scene.
+pub fn demo_config(steps: u32, seed: u64) -> CompareConfig {
+    let mut train = TrainConfig::with_steps(steps);
+    train.rays_per_step = 512;
+    train.background = SKY;
+    train.seed = seed;
+    train.occupancy = OccupancyConfig {
+        resolution: 32,
+        steps_per_diagonal: 192,
+        max_samples: 192,
+        warmup_steps: 64,
+        ..Default::default()
+    };
+    CompareConfig {
+        train,
+        field: NerfConfig {
+            grid: HashGridConfig { levels: 12, log2_table_size: 15, base_resolution: 16, finest_resolution: 512 },
+            aabb: workspace::aabb(),
+        },
+        mixnet_grid: crate::field::mixnet::default_mixnet_grid(),
+        m: DensityThreshold::Sigma(crate::cli::DEFAULT_M),
+        eval_every: (steps / 20).max(1),
+    }
+}
+
+/// `rnerf demo`: synthesise the workspace with and without a glass sphere (written as datasets
+/// into `out/data`), train the background, then compare the paper's methods on the scene.
+pub(super) fn demo(out: &Path, steps: Option<u32>, seed: Option<u64>) -> Result<(), String> {
+    let t0 = std::time::Instant::now();
+    let cfg = demo_config(steps.unwrap_or(DEMO.steps), seed.unwrap_or(0));
+    let isa = Isa::detect();
+    eprintln!(
+        "rnerf demo: synthesising a {s}x{s} workspace ({} views with and without a glass sphere) into {}",
+        DEMO.views,
+        out.join("data").display(),
+        s = DEMO.size
+    );
+    let bg = workspace::workspace(DEMO.size, DEMO.views, 0.0, false);
+    let scene = workspace::workspace(DEMO.size, DEMO.views, 0.0, true);
+    let test = workspace::workspace(DEMO.size, DEMO.test_views, 0.37, true);
+    std::fs::create_dir_all(out).map_err(|e| format!("{}: --out: cannot create: {e}", out.display()))?;
+    bg.write_split(&out.join("data/background"), "train")?;
+    scene.write_split(&out.join("data/glass"), "train")?;
+    test.write_split(&out.join("data/glass"), "test")?;
+    eprintln!(
+        "rnerf demo: training the background, then Dex-NeRF, Residual-NeRF and Residual-NeRF-S ({} steps each, cpu level {isa}, {} threads)",
+        cfg.train.steps,
+        rayon::current_num_threads()
+    );
+    let background = train_background(isa, &bg.views, &cfg)?;
+    let scenes = [SceneData { name: "glass".into(), train: scene.views, test: EvalSet::from_synth(&test) }];
+    compare_and_write(isa, &background, &scenes, &Method::paper(), &cfg, out)?;
+    eprintln!(
+        "rnerf demo: done in {:.1} s; look at {}",
+        t0.elapsed().as_secs_f64(),
+        out.join("glass/depth_0.png").display()
+    );
+    Ok(())
+}
