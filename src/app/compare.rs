@@ -27,6 +27,7 @@ pub struct CompareArgs {
     pub seed: Option<u64>,
     pub eval_every: Option<u32>,
     pub m: DensityThreshold,
+    pub m_sweep: Vec<DensityThreshold>,
 }
 
 /// One scene ready to compare.
@@ -115,6 +116,7 @@ pub(super) fn run(a: &CompareArgs) -> Result<(), String> {
         field: NerfConfig { grid, aabb },
         mixnet_grid: crate::field::mixnet::default_mixnet_grid(),
         m: a.m,
+        m_sweep: a.m_sweep.clone(),
     };
     let isa = Isa::detect();
     eprintln!(
@@ -207,6 +209,11 @@ fn write_tables(results: &[SceneResult], cfg: &CompareConfig, out: &Path) -> Res
                            "hole_rate": e.hole_rate(), "train_seconds": m.seconds, "psnr": m.psnr})
                 };
                 let mut v = vec![row(m.method.name(), &m.threshold)];
+                for (th, e) in &m.sweep {
+                    let mut x = row(m.method.name(), e);
+                    x["threshold"] = format!("{th:?}").into();
+                    v.push(x);
+                }
                 if m.method == Method::Dex {
                     v.insert(0, row("nerf-expected", &m.expected));
                 }
@@ -257,6 +264,7 @@ pub fn demo_config(steps: u32, seed: u64) -> CompareConfig {
         mixnet_grid: crate::field::mixnet::default_mixnet_grid(),
         m: DensityThreshold::Sigma(crate::cli::DEFAULT_M),
         eval_every: (steps / 20).max(1),
+        m_sweep: Vec::new(),
     }
 }
 

@@ -35,6 +35,7 @@ pub fn run(command: Command) -> Result<(), String> {
             mixnet,
             distortion,
             lr,
+            near_grad,
         } => {
             set_threads(threads)?;
             let args = train::TrainArgs {
@@ -51,6 +52,7 @@ pub fn run(command: Command) -> Result<(), String> {
                 mixnet,
                 distortion,
                 lr,
+                near_grad,
             };
             train::run(&args)?;
         }
@@ -89,6 +91,7 @@ pub fn run(command: Command) -> Result<(), String> {
             seed,
             eval_every,
             m,
+            m_sweep,
             threads,
         } => {
             set_threads(threads)?;
@@ -104,6 +107,7 @@ pub fn run(command: Command) -> Result<(), String> {
                 seed,
                 eval_every,
                 m,
+                m_sweep,
             })?;
         }
         Command::Demo { out, steps, seed, threads } => {

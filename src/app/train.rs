@@ -36,6 +36,7 @@ pub struct TrainArgs {
     pub mixnet: Option<MixnetEncoding>,
     pub distortion: Option<f32>,
     pub lr: Option<f32>,
+    pub near_grad: Option<f32>,
 }
 
 /// The trainer settings `rnerf train` uses for `steps` steps (its defaults, documented in the
@@ -107,6 +108,7 @@ pub(super) fn run(a: &TrainArgs) -> Result<(), String> {
     cfg.seed = a.seed.unwrap_or(cfg.seed);
     cfg.distortion = a.distortion.unwrap_or(cfg.distortion);
     cfg.schedule.base = a.lr.unwrap_or(cfg.schedule.base);
+    cfg.near_gradient_distance = a.near_grad.unwrap_or(cfg.near_gradient_distance);
     cfg.background = opts.background;
     let isa = Isa::detect();
     eprintln!(
@@ -151,6 +153,7 @@ pub(super) fn run(a: &TrainArgs) -> Result<(), String> {
         ("train_seed", cfg.seed.to_string()),
         ("train_distortion", cfg.distortion.to_string()),
         ("train_lr", cfg.schedule.base.to_string()),
+        ("train_near_gradient_distance", cfg.near_gradient_distance.to_string()),
         ("train_data", a.data.display().to_string()),
         ("train_split", a.split.clone()),
     ];

@@ -160,6 +160,9 @@ pub struct CompareConfig {
     pub m: DensityThreshold,
     /// Steps between points of the speed curves (0: final point only).
     pub eval_every: u32,
+    /// Further thresholds at which the final models are scored in the crops (the `m` sweep
+    /// that chooses the default).
+    pub m_sweep: Vec<DensityThreshold>,
 }
 
 /// A point of a speed curve: threshold-depth errors inside the test crops after `step` steps.
@@ -190,6 +193,8 @@ pub struct MethodResult {
     pub psnr: f64,
     /// Final renders of the test views.
     pub renders: Vec<RenderedView>,
+    /// Final threshold-depth errors in the crops at each threshold of [`CompareConfig::m_sweep`].
+    pub sweep: Vec<(DensityThreshold, DepthErrors)>,
 }
 
 /// All methods on one scene.
@@ -298,7 +303,12 @@ fn run_method<M: Model>(
         renders.push(r);
     }
     let psnr = psnr_sum / test.views.len().max(1) as f64;
-    MethodResult { method, seconds, curve, threshold, expected, psnr, renders }
+    let sweep = cfg
+        .m_sweep
+        .iter()
+        .map(|&m| (m, crop_errors(isa, &scene, test, m, &mut renderer, &mut z, &mut truth)))
+        .collect();
+    MethodResult { method, seconds, curve, threshold, expected, psnr, renders, sweep }
 }
 
 /// Trains and scores every method of `methods` on one scene over the frozen `background`.
@@ -410,6 +420,7 @@ pub fn table(results: &[SceneResult]) -> String {
             );
         }
     }
+    s.push_str(&sweep_table(results));
     let dex = mean_errors(results, Method::Dex);
     for method in ALL.into_iter().skip(1) {
         if let (Some(d), Some(r)) = (dex, mean_errors(results, method)) {
@@ -448,6 +459,46 @@ pub fn table(results: &[SceneResult]) -> String {
                     res.threshold.rmse()
                 );
             }
+        }
+    }
+    s
+}
+
+fn threshold_name(m: DensityThreshold) -> String {
+    match m {
+        DensityThreshold::Sigma(v) => format!("σ ≥ {v}"),
+        DensityThreshold::Raw(v) => format!("s ≥ {v} (raw)"),
+    }
+}
+
+/// Mean over scenes of the threshold sweep (Markdown), one row per method and threshold;
+/// empty without a sweep.
+fn sweep_table(results: &[SceneResult]) -> String {
+    let mut s = String::new();
+    let Some(first) = results.first() else { return s };
+    if first.methods.iter().all(|m| m.sweep.is_empty()) {
+        return s;
+    }
+    let _ = writeln!(s, "\nThreshold sweep (mean over {} scene(s), same trained models):\n", results.len());
+    let _ = writeln!(s, "| method | threshold | depth MAE (m) | depth RMSE (m) | holes |");
+    let _ = writeln!(s, "|---|---|---|---|---|");
+    let n = results.len() as f64;
+    for (k, m) in first.methods.iter().enumerate() {
+        for (j, (th, _)) in m.sweep.iter().enumerate() {
+            let (mut mae, mut rmse, mut holes) = (0.0, 0.0, 0.0);
+            for r in results {
+                let e = &r.methods[k].sweep[j].1;
+                (mae, rmse, holes) = (mae + e.mae(), rmse + e.rmse(), holes + e.hole_rate());
+            }
+            let _ = writeln!(
+                s,
+                "| {} | {} | {:.4} | {:.4} | {:.1}% |",
+                m.method.label(),
+                threshold_name(*th),
+                mae / n,
+                rmse / n,
+                100.0 * holes / n
+            );
         }
     }
     s

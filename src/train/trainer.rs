@@ -56,7 +56,15 @@ pub struct TrainConfig {
     /// Weight λ of the distortion loss (per ray, scene units; [`crate::render::distortion`]).
     /// Defaults to [`DISTORTION`].
     pub distortion: f32,
+    /// Distance (scene units) within which each sample's gradients are scaled down by
+    /// `(t / d)²` (Philip & Deschaintre 2023, "Floaters No More"): density right in front of a
+    /// training camera, which only that camera sees, learns slower than the scene. 0 turns it
+    /// off. Defaults to [`NEAR_GRADIENT_DISTANCE`].
+    pub near_gradient_distance: f32,
 }
+
+/// Default of [`TrainConfig::near_gradient_distance`] (chosen by measured depth; README).
+pub const NEAR_GRADIENT_DISTANCE: f32 = 0.0;
 
 /// Default weight of the distortion loss: off — on the dev background it did not improve depth
 /// at the weights tried (README, "Decisions").
@@ -80,6 +88,7 @@ impl TrainConfig {
             background: [0.0; 3],
             seed: 0,
             distortion: DISTORTION,
+            near_gradient_distance: NEAR_GRADIENT_DISTANCE,
         }
     }
 }
@@ -106,6 +115,16 @@ pub struct StepStats {
     pub seconds: f64,
     /// Fraction of occupied cells.
     pub occupancy: f64,
+}
+
+/// Scales each sample's gradients by `min(1, (t / distance)²)` ([`TrainConfig::near_gradient_distance`]).
+pub fn scale_near_gradients(t: &[f32], distance: f32, d_sigma: &mut [f32], d_rgb: &mut [[f32; 3]]) {
+    let inv = 1.0 / distance;
+    for ((ds, dc), &t) in d_sigma.iter_mut().zip(d_rgb.iter_mut()).zip(t) {
+        let k = (t * inv).min(1.0).powi(2);
+        *ds *= k;
+        *dc = dc.map(|v| v * k);
+    }
 }
 
 /// Reusable buffers of one step.
@@ -360,11 +379,15 @@ pub fn train_model<M: Model>(
                         distortion_backward(
                             &sigma[r.clone()],
                             &samples.delta[r.clone()],
-                            &samples.t[r],
+                            &samples.t[r.clone()],
                             cfg.distortion / cfg.rays_per_step as f32,
-                            &mut d_s[local],
+                            &mut d_s[local.clone()],
                             &mut scratch,
                         );
+                    }
+                    if cfg.near_gradient_distance > 0.0 {
+                        let (ds, dc) = (&mut d_s[local.clone()], &mut d_c[local]);
+                        scale_near_gradients(&samples.t[r], cfg.near_gradient_distance, ds, dc);
                     }
                 }
                 loss
@@ -395,4 +418,19 @@ pub fn train_model<M: Model>(
     rayon::broadcast(|ctx| crate::simd::fpmode::restore(modes[ctx.index()]));
     crate::simd::fpmode::restore(main_mode);
     (params, occupancy)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn near_gradients_scale_quadratically_up_to_the_distance() {
+        let t = [0.05, 0.1, 0.2, 0.5];
+        let mut ds = [1.0, 2.0, 1.0, 1.0];
+        let mut dc = [[1.0; 3], [1.0; 3], [-2.0; 3], [1.0; 3]];
+        scale_near_gradients(&t, 0.2, &mut ds, &mut dc);
+        assert_eq!(ds, [0.0625, 0.5, 1.0, 1.0]);
+        assert_eq!(dc, [[0.0625; 3], [0.25; 3], [-2.0; 3], [1.0; 3]]);
+    }
 }
