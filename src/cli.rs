@@ -11,7 +11,7 @@ pub const USAGE: &str = "usage: rnerf <command> [options]
 
 commands:
   train  --data DIR --out MODEL [--steps N] [--rays N] [--log2t N] [--seed S] [--threads N]
-         [--split NAME] [--csv FILE] [--lr LR] [--distortion L] [--near-grad D] [--background BG_MODEL [--mix mixnet|sum]
+         [--split NAME] [--csv FILE] [--lr LR] [--distortion L] [--near-grad D] [--fixed-background] [--background BG_MODEL [--mix mixnet|sum]
          [--density-mix raw|activated] [--mixnet-encoding own|shared]]
          train a NeRF on DIR's transforms_<split>.json (default split: train); with --background,
          a Residual-NeRF (residual + Mixnet over the frozen background; --mix sum: Residual-NeRF-S)
@@ -99,6 +99,9 @@ pub enum Command {
         lr: Option<f32>,
         /// Near-camera gradient scaling distance (`--near-grad`, 0 turns it off).
         near_grad: Option<f32>,
+        /// `Some(false)`: train over the fixed background colour even for images without
+        /// alpha (`--fixed-background`).
+        random_bg: Option<bool>,
     },
     /// `rnerf render`.
     Render {
@@ -244,6 +247,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             "distortion",
             "lr",
             "near-grad",
+            "fixed-background",
         ],
         "render" => &["model", "data", "out", "split", "depth", "m", "m-raw", "threads"],
         "eval" => &["model", "data", "split", "depth", "m", "m-raw", "crop", "limit", "json", "threads"],
@@ -296,6 +300,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             distortion: f.distortion,
             lr: f.lr,
             near_grad: f.near_grad,
+            random_bg: f.fixed_background.then_some(false),
         },
         "render" => Command::Render {
             model: f.need_path("model", &command)?,
@@ -372,6 +377,7 @@ struct Flags {
     lr: Option<f32>,
     near_grad: Option<f32>,
     m_sweep: Option<Vec<crate::render::DensityThreshold>>,
+    fixed_background: bool,
     background_model: Option<PathBuf>,
     scenes: Vec<PathBuf>,
     methods: Option<Vec<crate::compare::Method>>,
@@ -382,6 +388,7 @@ impl Flags {
     fn take(&mut self, name: &str, p: &mut lexopt::Parser) -> Result<(), CliError> {
         match name {
             "json" => self.json = true,
+            "fixed-background" => self.fixed_background = true,
             "data" => self.data = Some(path(p, name)?),
             "out" => self.out = Some(path(p, name)?),
             "model" => self.model = Some(path(p, name)?),

@@ -93,8 +93,10 @@ pub(super) fn run(a: &CompareArgs) -> Result<(), String> {
     };
     let mut scenes = Vec::new();
     let mut names = std::collections::HashSet::new();
+    let mut any_alpha = bg_train.as_ref().is_some_and(|d| d.had_alpha);
     for dir in &a.scenes {
         let (train, test) = load_scene(dir, FrameType::Scene, Some(&aabb))?;
+        any_alpha |= train.had_alpha;
         let mut name = scene_name(dir);
         while !names.insert(name.clone()) {
             name.push('_');
@@ -110,6 +112,8 @@ pub(super) fn run(a: &CompareArgs) -> Result<(), String> {
     train.rays_per_step = a.rays.unwrap_or(train.rays_per_step);
     train.seed = a.seed.unwrap_or(train.seed);
     train.background = LoadOptions::default().background;
+    // As `rnerf train`: images without alpha show a surface in every pixel.
+    train.random_background = !any_alpha;
     let cfg = CompareConfig {
         eval_every: a.eval_every.unwrap_or((train.steps / 20).max(1)),
         train,

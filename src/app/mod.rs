@@ -36,6 +36,7 @@ pub fn run(command: Command) -> Result<(), String> {
             distortion,
             lr,
             near_grad,
+            random_bg,
         } => {
             set_threads(threads)?;
             let args = train::TrainArgs {
@@ -53,6 +54,7 @@ pub fn run(command: Command) -> Result<(), String> {
                 distortion,
                 lr,
                 near_grad,
+                random_bg,
             };
             train::run(&args)?;
         }

@@ -37,6 +37,7 @@ pub struct TrainArgs {
     pub distortion: Option<f32>,
     pub lr: Option<f32>,
     pub near_grad: Option<f32>,
+    pub random_bg: Option<bool>,
 }
 
 /// The trainer settings `rnerf train` uses for `steps` steps (its defaults, documented in the
@@ -110,6 +111,7 @@ pub(super) fn run(a: &TrainArgs) -> Result<(), String> {
     cfg.schedule.base = a.lr.unwrap_or(cfg.schedule.base);
     cfg.near_gradient_distance = a.near_grad.unwrap_or(cfg.near_gradient_distance);
     cfg.background = opts.background;
+    cfg.random_background = !data.had_alpha && a.random_bg.unwrap_or(true);
     let isa = Isa::detect();
     eprintln!(
         "rnerf train: {} steps x {} rays, log2 T = {}, distortion {}, seed {}, cpu level {isa}, {} threads",
@@ -153,6 +155,7 @@ pub(super) fn run(a: &TrainArgs) -> Result<(), String> {
         ("train_seed", cfg.seed.to_string()),
         ("train_distortion", cfg.distortion.to_string()),
         ("train_lr", cfg.schedule.base.to_string()),
+        ("train_random_background", cfg.random_background.to_string()),
         ("train_near_gradient_distance", cfg.near_gradient_distance.to_string()),
         ("train_data", a.data.display().to_string()),
         ("train_split", a.split.clone()),

@@ -51,6 +51,11 @@ pub struct TrainConfig {
     pub occupancy: OccupancyConfig,
     /// Colour behind the scene where rays leave the box (C's background term). Defaults to black.
     pub background: [f32; 3],
+    /// Draw each training ray's background colour uniformly at random instead (targets
+    /// unchanged): transmittance left at the end of a ray then costs loss, so the field must
+    /// make every surface opaque. Right for images without alpha (every pixel shows a surface);
+    /// `rnerf train` turns it on for such datasets. Defaults to false.
+    pub random_background: bool,
     /// Seed of initialisation and sampling. Defaults to 0.
     pub seed: u64,
     /// Weight λ of the distortion loss (per ray, scene units; [`crate::render::distortion`]).
@@ -86,6 +91,7 @@ impl TrainConfig {
             occupancy_interval: 16,
             occupancy: OccupancyConfig::default(),
             background: [0.0; 3],
+            random_background: false,
             seed: 0,
             distortion: DISTORTION,
             near_gradient_distance: NEAR_GRADIENT_DISTANCE,
@@ -132,6 +138,7 @@ pub fn scale_near_gradients(t: &[f32], distance: f32, d_sigma: &mut [f32], d_rgb
 struct StepBuffers {
     rays: Vec<Ray>,
     targets: Vec<[f32; 3]>,
+    backgrounds: Vec<[f32; 3]>,
     marched: PackedSamples,
     marched_pos: Vec<Vec3>,
     marched_dirs: Vec<Vec3>,
@@ -307,12 +314,17 @@ pub fn train_model<M: Model>(
         let mut srng = Rng::stream(cfg.seed, step as u64);
         buf.rays.clear();
         buf.targets.clear();
+        buf.backgrounds.clear();
         for _ in 0..cfg.rays_per_step {
             let v = &views[srng.below(views.len() as u64) as usize];
             let (w, h) = (v.intrinsics.width, v.intrinsics.height);
             let p = srng.below(w as u64 * h as u64) as u32;
             buf.rays.push(pixel_ray(&v.intrinsics, &v.pose, p % w, p / w));
             buf.targets.push(v.rgb[p as usize]);
+            buf.backgrounds.push(match cfg.random_background {
+                true => std::array::from_fn(|_| srng.uniform(0.0, 1.0)),
+                false => cfg.background,
+            });
         }
         // 2. March; drop the samples behind each ray's opaque point (T < 1e-4): a density-only
         //    pass finds them; compositing ignores them anyway, so the result is unchanged and
@@ -342,6 +354,7 @@ pub fn train_model<M: Model>(
         buf.d_rgb.resize(n, [0.0; 3]);
         let scale = 2.0 / (3 * cfg.rays_per_step) as f32;
         let (samples, sigma, rgb, targets) = (&buf.samples, &buf.sigma, &buf.rgb, &buf.targets);
+        let backgrounds = &buf.backgrounds;
         let groups = ray_groups(&samples.rays);
         let d_sigma_parts = split_at_bounds(&mut buf.d_sigma, &groups);
         let d_rgb_parts = split_at_bounds(&mut buf.d_rgb, &groups);
@@ -362,7 +375,7 @@ pub fn train_model<M: Model>(
                         &samples.delta[r.clone()],
                         &samples.t[r.clone()],
                         &rgb[r.clone()],
-                        cfg.background,
+                        backgrounds[ray],
                     );
                     let err: [f32; 3] = std::array::from_fn(|k| c.rgb[k] - targets[ray][k]);
                     loss += err.iter().map(|e| (e * e) as f64).sum::<f64>();
