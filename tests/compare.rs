@@ -61,7 +61,9 @@ fn compare_writes_the_table_curves_and_depth_sheets() {
     }
     let doc: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("table.json")).unwrap()).unwrap();
     let rows = doc["rows"].as_array().unwrap();
-    assert_eq!(rows.len(), 4, "nerf-expected, dex, residual-shared, residual-s");
+    let (sweep, main): (Vec<_>, Vec<_>) = rows.iter().partition(|r| r.get("threshold").is_some());
+    assert_eq!(main.len(), 4, "nerf-expected, dex, residual-shared, residual-s");
+    assert_eq!(sweep.len(), 3 * 4, "each trained method at the 4 thresholds of the default sweep");
     for r in rows {
         assert!(r["mae"].as_f64().is_some_and(|v| v.is_finite() && v >= 0.0), "{r}");
         assert_eq!(r["scene"], "glass");
