@@ -24,7 +24,7 @@ use crate::field::mixnet::MixnetEncoding;
 use crate::field::residual::{ResidualConfig, ResidualField};
 use crate::field::{Nerf, NerfConfig, NerfField};
 use crate::render::view::{RenderedView, Scene};
-use crate::render::{DensityThreshold, FullOutputs, Intrinsics, ViewRenderer};
+use crate::render::{DensityThreshold, Intrinsics, ViewRenderer};
 use crate::simd::Isa;
 use crate::train::model::Model;
 use crate::train::trainer::{train_model, StepStats, TrainConfig, View};
@@ -283,20 +283,7 @@ fn run_method<M: Model>(
     let mut renders = Vec::new();
     for ((v, gt), &crop) in test.views.iter().zip(&test.depth).zip(&test.crops) {
         let k = &v.intrinsics;
-        let n = (k.width * k.height) as usize;
-        let mut r = RenderedView {
-            rgb: vec![[0.0; 3]; n],
-            expected_z: vec![0.0; n],
-            threshold_z: vec![0.0; n],
-            beta: vec![0.0; n],
-        };
-        let out = FullOutputs {
-            rgb: &mut r.rgb,
-            expected_z: &mut r.expected_z,
-            threshold_z: &mut r.threshold_z,
-            beta: &mut r.beta,
-        };
-        renderer.full(isa, &scene, k, &v.pose, cfg.train.background, cfg.m, out);
+        let r = renderer.render(isa, &scene, k, &v.pose, cfg.train.background, cfg.m);
         threshold.add_frame(&r.threshold_z, gt, k.width, crop, None);
         expected.add_frame(&r.expected_z, gt, k.width, crop, None);
         psnr_sum += psnr(mse(&r.rgb, &v.rgb));

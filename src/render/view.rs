@@ -314,19 +314,34 @@ pub fn render_view<M: Model>(
     background: [f32; 3],
     m: DensityThreshold,
 ) -> RenderedView {
-    let n = (k.width * k.height) as usize;
-    let mut v = RenderedView {
-        rgb: vec![[0.0; 3]; n],
-        expected_z: vec![0.0; n],
-        threshold_z: vec![0.0; n],
-        beta: vec![0.0; n],
-    };
-    let out = FullOutputs {
-        rgb: &mut v.rgb,
-        expected_z: &mut v.expected_z,
-        threshold_z: &mut v.threshold_z,
-        beta: &mut v.beta,
-    };
-    ViewRenderer::<M>::new().full(isa, scene, k, pose, background, m, out);
-    v
+    ViewRenderer::<M>::new().render(isa, scene, k, pose, background, m)
+}
+
+impl<M: Model> ViewRenderer<M> {
+    /// [`ViewRenderer::full`] into newly allocated images (the renderer's buffers are reused).
+    pub fn render(
+        &mut self,
+        isa: Isa,
+        scene: &Scene<'_, M>,
+        k: &Intrinsics,
+        pose: &Pose,
+        background: [f32; 3],
+        m: DensityThreshold,
+    ) -> RenderedView {
+        let n = (k.width * k.height) as usize;
+        let mut v = RenderedView {
+            rgb: vec![[0.0; 3]; n],
+            expected_z: vec![0.0; n],
+            threshold_z: vec![0.0; n],
+            beta: vec![0.0; n],
+        };
+        let out = FullOutputs {
+            rgb: &mut v.rgb,
+            expected_z: &mut v.expected_z,
+            threshold_z: &mut v.threshold_z,
+            beta: &mut v.beta,
+        };
+        self.full(isa, scene, k, pose, background, m, out);
+        v
+    }
 }
