@@ -68,41 +68,7 @@ pub use crate::eval::CropRule;
 #[derive(Clone, Debug, PartialEq)]
 pub enum Command {
     /// `rnerf train`.
-    Train {
-        /// Dataset folder (`--data`).
-        data: PathBuf,
-        /// Model file to write (`--out`).
-        out: PathBuf,
-        /// Split to train on (`--split`, default `train`).
-        split: String,
-        /// Steps (`--steps`).
-        steps: Option<u32>,
-        /// Rays per step (`--rays`).
-        rays: Option<usize>,
-        /// log2 of the hash-table size (`--log2t`).
-        log2t: Option<u32>,
-        /// Seed (`--seed`).
-        seed: Option<u64>,
-        /// Worker threads (`--threads`).
-        threads: Option<usize>,
-        /// Metrics log (`--csv`).
-        csv: Option<PathBuf>,
-        /// Frozen background model: train a residual model (`--background`).
-        background: Option<PathBuf>,
-        /// How background and residual mix (`--mix`, `--density-mix`); default Mixnet, raw.
-        mix: Option<crate::field::mix::MixKind>,
-        /// The Mixnet's encoding (`--mixnet-encoding`); default its own grid.
-        mixnet: Option<crate::field::mixnet::MixnetEncoding>,
-        /// Weight of the distortion loss (`--distortion`, 0 turns it off).
-        distortion: Option<f32>,
-        /// Base learning rate (`--lr`).
-        lr: Option<f32>,
-        /// Near-camera gradient scaling distance (`--near-grad`, 0 turns it off).
-        near_grad: Option<f32>,
-        /// `Some(false)`: train over the fixed background colour even for images without
-        /// alpha (`--fixed-background`).
-        random_bg: Option<bool>,
-    },
+    Train(TrainArgs),
     /// `rnerf render`.
     Render {
         /// Model file (`--model`).
@@ -138,34 +104,7 @@ pub enum Command {
         threads: Option<usize>,
     },
     /// `rnerf compare`.
-    Compare {
-        /// Background dataset folder (`--background`).
-        background: PathBuf,
-        /// A trained background model to use instead of training one (`--background-model`).
-        background_model: Option<PathBuf>,
-        /// Scene dataset folders (`--scene`, repeatable).
-        scenes: Vec<PathBuf>,
-        /// Output folder (`--out`), created if missing.
-        out: PathBuf,
-        /// Methods (`--methods`, default the paper's: dex, residual, residual-s).
-        methods: Vec<crate::compare::Method>,
-        /// Steps per method (`--steps`).
-        steps: Option<u32>,
-        /// Rays per step (`--rays`).
-        rays: Option<usize>,
-        /// log2 of the hash-table size (`--log2t`).
-        log2t: Option<u32>,
-        /// Seed (`--seed`).
-        seed: Option<u64>,
-        /// Steps between points of the speed curves (`--eval-every`).
-        eval_every: Option<u32>,
-        /// Threshold of threshold depth (`--m`, `--m-raw`).
-        m: crate::render::DensityThreshold,
-        /// Further σ thresholds the final models are scored at (`--m-sweep`).
-        m_sweep: Vec<crate::render::DensityThreshold>,
-        /// Worker threads (`--threads`).
-        threads: Option<usize>,
-    },
+    Compare(CompareArgs),
     /// `rnerf demo`.
     Demo {
         /// Output folder (`--out`, default `rnerf-demo`).
@@ -190,6 +129,75 @@ pub enum Command {
     },
     /// `rnerf help`, `-h`, `--help` or no arguments.
     Help,
+}
+
+/// Arguments of `rnerf train`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TrainArgs {
+    /// Dataset folder (`--data`).
+    pub data: PathBuf,
+    /// Model file to write (`--out`).
+    pub out: PathBuf,
+    /// Split to train on (`--split`, default `train`).
+    pub split: String,
+    /// Steps (`--steps`).
+    pub steps: Option<u32>,
+    /// Rays per step (`--rays`).
+    pub rays: Option<usize>,
+    /// log2 of the hash-table size (`--log2t`).
+    pub log2t: Option<u32>,
+    /// Seed (`--seed`).
+    pub seed: Option<u64>,
+    /// Worker threads (`--threads`).
+    pub threads: Option<usize>,
+    /// Metrics log (`--csv`).
+    pub csv: Option<PathBuf>,
+    /// Frozen background model: train a residual model (`--background`).
+    pub background: Option<PathBuf>,
+    /// How background and residual mix (`--mix`, `--density-mix`); default Mixnet, raw.
+    pub mix: Option<crate::field::mix::MixKind>,
+    /// The Mixnet's encoding (`--mixnet-encoding`); default its own grid.
+    pub mixnet: Option<crate::field::mixnet::MixnetEncoding>,
+    /// Weight of the distortion loss (`--distortion`, 0 turns it off).
+    pub distortion: Option<f32>,
+    /// Base learning rate (`--lr`).
+    pub lr: Option<f32>,
+    /// Near-camera gradient scaling distance (`--near-grad`, 0 turns it off).
+    pub near_grad: Option<f32>,
+    /// `Some(false)`: train over the fixed background colour even for images without
+    /// alpha (`--fixed-background`).
+    pub random_bg: Option<bool>,
+}
+
+/// Arguments of `rnerf compare`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CompareArgs {
+    /// Background dataset folder (`--background`).
+    pub background: PathBuf,
+    /// A trained background model to use instead of training one (`--background-model`).
+    pub background_model: Option<PathBuf>,
+    /// Scene dataset folders (`--scene`, repeatable).
+    pub scenes: Vec<PathBuf>,
+    /// Output folder (`--out`), created if missing.
+    pub out: PathBuf,
+    /// Methods (`--methods`, default the paper's: dex, residual, residual-s).
+    pub methods: Vec<crate::compare::Method>,
+    /// Steps per method (`--steps`).
+    pub steps: Option<u32>,
+    /// Rays per step (`--rays`).
+    pub rays: Option<usize>,
+    /// log2 of the hash-table size (`--log2t`).
+    pub log2t: Option<u32>,
+    /// Seed (`--seed`).
+    pub seed: Option<u64>,
+    /// Steps between points of the speed curves (`--eval-every`).
+    pub eval_every: Option<u32>,
+    /// Threshold of threshold depth (`--m`, `--m-raw`).
+    pub m: crate::render::DensityThreshold,
+    /// Further σ thresholds the final models are scored at (`--m-sweep`).
+    pub m_sweep: Vec<crate::render::DensityThreshold>,
+    /// Worker threads (`--threads`).
+    pub threads: Option<usize>,
 }
 
 /// A command-line error: one line saying what is wrong and where.
@@ -284,7 +292,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
     }
     let threads = f.threads;
     Ok(match command.as_str() {
-        "train" => Command::Train {
+        "train" => Command::Train(TrainArgs {
             data: f.need_path("data", &command)?,
             out: f.need_path("out", &command)?,
             split: f.split.clone().unwrap_or_else(|| "train".into()),
@@ -301,7 +309,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             lr: f.lr,
             near_grad: f.near_grad,
             random_bg: f.fixed_background.then_some(false),
-        },
+        }),
         "render" => Command::Render {
             model: f.need_path("model", &command)?,
             data: f.need_path("data", &command)?,
@@ -320,7 +328,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             json: f.json,
             threads,
         },
-        "compare" => Command::Compare {
+        "compare" => Command::Compare(CompareArgs {
             background: f
                 .background
                 .clone()
@@ -343,7 +351,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
                 DEFAULT_M_SWEEP.iter().map(|&v| crate::render::DensityThreshold::Sigma(v)).collect()
             }),
             threads,
-        },
+        }),
         "demo" => Command::Demo { out: f.out.clone(), steps: f.steps, seed: f.seed, threads },
         _ => Command::Bench { json: f.json, reps: f.reps, log2t: f.log2t, threads },
     })
@@ -636,7 +644,7 @@ mod tests {
             Ok(Command::Demo { out: None, steps: Some(20), seed: None, threads: Some(1) })
         );
         match parse(args("compare --background b --scene s1 --scene s2 --out o --methods dex,residual-s --m 5")) {
-            Ok(Command::Compare { scenes, methods, m, .. }) => {
+            Ok(Command::Compare(CompareArgs { scenes, methods, m, .. })) => {
                 assert_eq!(scenes, [PathBuf::from("s1"), PathBuf::from("s2")]);
                 assert_eq!(methods.len(), 2);
                 assert_eq!(m, crate::render::DensityThreshold::Sigma(5.0));

@@ -5,16 +5,14 @@
 //! for the same number of steps.
 
 use residual_nerf::data::workspace::{self, SKY};
-use residual_nerf::encoding::HashGridConfig;
 use residual_nerf::eval::DepthErrors;
 use residual_nerf::field::mix::{DensityMix, MixKind};
 use residual_nerf::field::mixnet::MixnetEncoding;
 use residual_nerf::field::residual::ResidualConfig;
-use residual_nerf::field::NerfConfig;
 use residual_nerf::render::view::{render_view, Scene};
-use residual_nerf::render::{DensityThreshold, OccupancyConfig};
+use residual_nerf::render::DensityThreshold;
 use residual_nerf::simd::Isa;
-use residual_nerf::train::trainer::{train_nerf, train_residual, TrainConfig};
+use residual_nerf::train::trainer::{train_nerf, train_residual};
 
 #[test]
 fn residual_nerf_beats_dex_nerf_in_the_glass_crop() {
@@ -23,21 +21,9 @@ fn residual_nerf_beats_dex_nerf_in_the_glass_crop() {
     let bg_views = workspace::workspace(size, 24, 0.0, false);
     let scene_views = workspace::workspace(size, 24, 0.0, true);
     let test = workspace::workspace(size, 4, 0.37, true);
-    let field = NerfConfig {
-        grid: HashGridConfig { levels: 12, log2_table_size: 15, base_resolution: 16, finest_resolution: 512 },
-        aabb: workspace::aabb(),
-    };
-    let steps = 300;
-    let mut cfg = TrainConfig::with_steps(steps);
-    cfg.rays_per_step = 512;
-    cfg.background = SKY;
-    cfg.occupancy = OccupancyConfig {
-        resolution: 32,
-        steps_per_diagonal: 192,
-        max_samples: 192,
-        warmup_steps: 64,
-        ..Default::default()
-    };
+    // The demo's small-scene settings: 300 steps × 512 rays, 12-level grid, 32³ occupancy.
+    let demo = residual_nerf::app::demo_config(300, 0);
+    let (field, cfg) = (demo.field, demo.train);
     let t0 = std::time::Instant::now();
     let background = train_nerf(isa, &bg_views.views, field.clone(), &cfg, 0, |_| {});
     let dex = train_nerf(isa, &scene_views.views, field.clone(), &cfg, 0, |_| {});

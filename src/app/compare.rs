@@ -1,34 +1,19 @@
 //! `rnerf compare` (the paper's protocol on a dataset) and `rnerf demo` (the same on a
 //! synthesised workspace): both end in [`compare_and_write`].
 
-use super::{default_train_config, Progress, TRAIN_STEPS};
+use super::train::{adopt_background_box, load_background, trainer_settings};
+use super::Progress;
 use crate::compare::{self, CompareConfig, EvalSet, Method, SceneResult};
 use crate::data::workspace::{self, SKY};
-use crate::data::{AabbSource, Dataset, FrameType, LoadOptions};
+use crate::data::{Dataset, FrameType, LoadOptions};
 use crate::encoding::HashGridConfig;
 use crate::field::{Nerf, NerfConfig};
-use crate::io::{export, load_model, save_nerf, write_atomic, LoadedModel};
+use crate::io::{export, save_nerf, write_atomic};
 use crate::render::{Aabb, DensityThreshold, OccupancyConfig};
 use crate::simd::Isa;
 use crate::train::trainer::{train_nerf, StepStats, TrainConfig, View};
 use serde_json::json;
-use std::path::{Path, PathBuf};
-
-/// Arguments of `rnerf compare`.
-pub struct CompareArgs {
-    pub background: PathBuf,
-    pub background_model: Option<PathBuf>,
-    pub scenes: Vec<PathBuf>,
-    pub out: PathBuf,
-    pub methods: Vec<Method>,
-    pub steps: Option<u32>,
-    pub rays: Option<usize>,
-    pub log2t: Option<u32>,
-    pub seed: Option<u64>,
-    pub eval_every: Option<u32>,
-    pub m: DensityThreshold,
-    pub m_sweep: Vec<DensityThreshold>,
-}
+use std::path::Path;
 
 /// One scene ready to compare.
 pub struct SceneData {
@@ -40,29 +25,20 @@ pub struct SceneData {
     pub test: EvalSet,
 }
 
-fn same_box(a: &Aabb, b: &Aabb) -> bool {
-    (a.min - b.min).abs().max_element() <= 1e-5 && (a.max - b.max).abs().max_element() <= 1e-5
+/// A scene's training views (in the background's box) and its test views with ground truth.
+fn load_scene(dir: &Path, bg_box: Aabb, bg_path: &Path) -> Result<(Dataset, EvalSet), String> {
+    let train_opts = LoadOptions { ground_truth: false, frame_type: Some(FrameType::Scene), ..Default::default() };
+    let mut train = Dataset::load(dir, "train", &train_opts).map_err(|e| e.to_string())?;
+    adopt_background_box(&mut train, bg_box, bg_path)?;
+    let test_opts = LoadOptions { frame_type: Some(FrameType::Scene), ..Default::default() };
+    let test = Dataset::load(dir, "test", &test_opts).map_err(|e| e.to_string())?;
+    Ok((train, EvalSet::from_dataset(&test)?))
 }
 
-fn load_scene(dir: &Path, frame_type: FrameType, aabb: Option<&Aabb>) -> Result<(Dataset, EvalSet), String> {
-    let train_opts = LoadOptions { ground_truth: false, frame_type: Some(frame_type), ..Default::default() };
-    let train = Dataset::load(dir, "train", &train_opts).map_err(|e| e.to_string())?;
-    let test_opts = LoadOptions { frame_type: Some(frame_type), ..Default::default() };
-    let test = Dataset::load(dir, "test", &test_opts).map_err(|e| e.to_string())?;
-    if let Some(b) = aabb {
-        if train.aabb_source == AabbSource::File && !same_box(&train.aabb, b) {
-            return Err(format!(
-                "{}: field 'aabb' {:?}..{:?} differs from the background's scene box {:?}..{:?}",
-                train.json.display(),
-                train.aabb.min.to_array(),
-                train.aabb.max.to_array(),
-                b.min.to_array(),
-                b.max.to_array()
-            ));
-        }
-    }
-    let eval = EvalSet::from_dataset(&test)?;
-    Ok((train, eval))
+/// The background of a comparison: a given model, or the dataset to train it on.
+enum Background {
+    Model(Box<Nerf>),
+    Data(Dataset),
 }
 
 fn scene_name(dir: &Path) -> String {
@@ -70,32 +46,26 @@ fn scene_name(dir: &Path) -> String {
     name.unwrap_or_else(|| "scene".into())
 }
 
-pub(super) fn run(a: &CompareArgs) -> Result<(), String> {
+pub(super) fn run(a: &crate::cli::CompareArgs) -> Result<(), String> {
     // Every input is read and checked before any training.
-    let background_model = match &a.background_model {
-        None => None,
-        Some(p) => match load_model(p).map_err(|e| format!("--background-model: {e}"))? {
-            LoadedModel::Nerf(n) => Some(*n),
-            LoadedModel::Residual(_) => {
-                return Err(format!("{}: --background-model: a residual model; expected a plain NeRF", p.display()))
-            }
-        },
+    let background = match &a.background_model {
+        Some(p) => Background::Model(Box::new(load_background(p, "--background-model")?)),
+        None => {
+            let opts =
+                LoadOptions { ground_truth: false, frame_type: Some(FrameType::Background), ..Default::default() };
+            Background::Data(Dataset::load(&a.background, "train", &opts).map_err(|e| e.to_string())?)
+        }
     };
-    let bg_opts = LoadOptions { ground_truth: false, frame_type: Some(FrameType::Background), ..Default::default() };
-    let bg_train = match &background_model {
-        Some(_) => None,
-        None => Some(Dataset::load(&a.background, "train", &bg_opts).map_err(|e| e.to_string())?),
-    };
-    let aabb = match (&background_model, &bg_train) {
-        (Some(m), _) => m.field.config().aabb,
-        (None, Some(d)) => d.aabb,
-        (None, None) => unreachable!("one of the two is loaded above"),
+    let aabb = match &background {
+        Background::Model(m) => m.field.config().aabb,
+        Background::Data(d) => d.aabb,
     };
     let mut scenes = Vec::new();
     let mut names = std::collections::HashSet::new();
-    let mut any_alpha = bg_train.as_ref().is_some_and(|d| d.had_alpha);
+    let mut any_alpha = matches!(&background, Background::Data(d) if d.had_alpha);
     for dir in &a.scenes {
-        let (train, test) = load_scene(dir, FrameType::Scene, Some(&aabb))?;
+        let bg_path = a.background_model.as_deref().unwrap_or(&a.background);
+        let (train, test) = load_scene(dir, aabb, bg_path)?;
         any_alpha |= train.had_alpha;
         let mut name = scene_name(dir);
         while !names.insert(name.clone()) {
@@ -104,16 +74,7 @@ pub(super) fn run(a: &CompareArgs) -> Result<(), String> {
         scenes.push(SceneData { name, train: train.views, test });
     }
     std::fs::create_dir_all(&a.out).map_err(|e| format!("{}: --out: cannot create: {e}", a.out.display()))?;
-    let grid = HashGridConfig {
-        log2_table_size: a.log2t.unwrap_or(HashGridConfig::default().log2_table_size),
-        ..Default::default()
-    };
-    let mut train = default_train_config(a.steps.unwrap_or(TRAIN_STEPS));
-    train.rays_per_step = a.rays.unwrap_or(train.rays_per_step);
-    train.seed = a.seed.unwrap_or(train.seed);
-    train.background = LoadOptions::default().background;
-    // As `rnerf train`: images without alpha show a surface in every pixel.
-    train.random_background = !any_alpha;
+    let (grid, train) = trainer_settings(a.steps, a.rays, a.log2t, a.seed, any_alpha);
     let cfg = CompareConfig {
         eval_every: a.eval_every.unwrap_or((train.steps / 20).max(1)),
         train,
@@ -132,11 +93,10 @@ pub(super) fn run(a: &CompareArgs) -> Result<(), String> {
         cfg.field.grid.log2_table_size,
         rayon::current_num_threads()
     );
-    let background = match background_model {
-        Some(m) => m,
-        None => {
-            let data = bg_train.expect("loaded when no model was given");
-            let nerf = train_background(isa, &data.views, &cfg)?;
+    let background = match background {
+        Background::Model(m) => *m,
+        Background::Data(data) => {
+            let nerf = train_background(isa, &data.views, &cfg);
             let path = a.out.join("background.safetensors");
             save_nerf(&path, &nerf, &[("train_data", a.background.display().to_string())])?;
             eprintln!("rnerf compare: wrote {}", path.display());
@@ -148,12 +108,11 @@ pub(super) fn run(a: &CompareArgs) -> Result<(), String> {
 }
 
 /// Trains the background NeRF with the comparison's settings, showing progress.
-pub fn train_background(isa: Isa, views: &[View], cfg: &CompareConfig) -> Result<Nerf, String> {
+pub fn train_background(isa: Isa, views: &[View], cfg: &CompareConfig) -> Nerf {
     let mut progress = Progress::new("background", cfg.train.steps as u64);
-    let nerf = train_nerf(isa, views, cfg.field.clone(), &cfg.train, 10, |s| {
+    train_nerf(isa, views, cfg.field.clone(), &cfg.train, 10, |s| {
         progress.update(s.step as u64 + 1, &format!("PSNR {:.2} dB", -10.0 * (s.loss as f64).log10()))
-    });
-    Ok(nerf)
+    })
 }
 
 /// Runs every method on every scene and writes the results into `out`: `table.md` (also
@@ -296,7 +255,7 @@ pub(super) fn demo(out: &Path, steps: Option<u32>, seed: Option<u64>) -> Result<
         cfg.train.steps,
         rayon::current_num_threads()
     );
-    let background = train_background(isa, &bg.views, &cfg)?;
+    let background = train_background(isa, &bg.views, &cfg);
     let scenes = [SceneData { name: "glass".into(), train: scene.views, test: EvalSet::from_synth(&test) }];
     compare_and_write(isa, &background, &scenes, &Method::paper(), &cfg, out)?;
     eprintln!(

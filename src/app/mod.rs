@@ -20,42 +20,8 @@ use crate::cli::Command;
 pub fn run(command: Command) -> Result<(), String> {
     match command {
         Command::Help => println!("{}", crate::cli::USAGE),
-        Command::Train {
-            data,
-            out,
-            split,
-            steps,
-            rays,
-            log2t,
-            seed,
-            threads,
-            csv,
-            background,
-            mix,
-            mixnet,
-            distortion,
-            lr,
-            near_grad,
-            random_bg,
-        } => {
-            set_threads(threads)?;
-            let args = train::TrainArgs {
-                data,
-                out,
-                split,
-                steps,
-                rays,
-                log2t,
-                seed,
-                csv,
-                background,
-                mix,
-                mixnet,
-                distortion,
-                lr,
-                near_grad,
-                random_bg,
-            };
+        Command::Train(args) => {
+            set_threads(args.threads)?;
             train::run(&args)?;
         }
         Command::Render { model, data, out, split, depth, threads } => {
@@ -81,36 +47,9 @@ pub fn run(command: Command) -> Result<(), String> {
                 print!("{}", report.to_table());
             }
         }
-        Command::Compare {
-            background,
-            background_model,
-            scenes,
-            out,
-            methods,
-            steps,
-            rays,
-            log2t,
-            seed,
-            eval_every,
-            m,
-            m_sweep,
-            threads,
-        } => {
-            set_threads(threads)?;
-            compare::run(&compare::CompareArgs {
-                background,
-                background_model,
-                scenes,
-                out,
-                methods,
-                steps,
-                rays,
-                log2t,
-                seed,
-                eval_every,
-                m,
-                m_sweep,
-            })?;
+        Command::Compare(args) => {
+            set_threads(args.threads)?;
+            compare::run(&args)?;
         }
         Command::Demo { out, steps, seed, threads } => {
             set_threads(threads)?;

@@ -4,41 +4,22 @@ use super::{check_output_file, Progress};
 use crate::data::{AabbSource, Dataset, LoadOptions};
 use crate::encoding::HashGridConfig;
 use crate::field::mix::{DensityMix, MixKind};
-use crate::field::mixnet::MixnetEncoding;
 use crate::field::residual::ResidualConfig;
-use crate::field::NerfConfig;
+use crate::field::{Nerf, NerfConfig};
 use crate::io::{load_model, save_nerf, save_residual, write_atomic, LoadedModel};
+use crate::render::Aabb;
 use crate::simd::Isa;
 use crate::train::trainer::{train_nerf, train_residual, StepStats, TrainConfig};
 use std::fmt::Write as _;
-use std::path::PathBuf;
+use std::path::Path;
 
-/// Default training steps: with [`TRAIN_RAYS`], about 4.5 minutes for 100 views of 200×200 on
+/// Default training steps: with [`TRAIN_RAYS`], about 6.5 minutes for 100 views of 200×200 on
 /// this project's 2-core machine (see README).
 pub const TRAIN_STEPS: u32 = 1000;
 /// Default rays per step (fixed per-step costs — Adam over the 16 M grid parameters — are
 /// small beside 1024 rays, and more, smaller steps learn faster per second than 4096-ray ones
 /// here; measured in README).
 pub const TRAIN_RAYS: usize = 1024;
-
-/// Arguments of `rnerf train`.
-pub struct TrainArgs {
-    pub data: PathBuf,
-    pub out: PathBuf,
-    pub split: String,
-    pub steps: Option<u32>,
-    pub rays: Option<usize>,
-    pub log2t: Option<u32>,
-    pub seed: Option<u64>,
-    pub csv: Option<PathBuf>,
-    pub background: Option<PathBuf>,
-    pub mix: Option<MixKind>,
-    pub mixnet: Option<MixnetEncoding>,
-    pub distortion: Option<f32>,
-    pub lr: Option<f32>,
-    pub near_grad: Option<f32>,
-    pub random_bg: Option<bool>,
-}
 
 /// The trainer settings `rnerf train` uses for `steps` steps (its defaults, documented in the
 /// README): [`TRAIN_RAYS`] rays per step, Adam at 1e-2 with step decay from 60% of the steps,
@@ -47,45 +28,70 @@ pub fn default_train_config(steps: u32) -> TrainConfig {
     TrainConfig { rays_per_step: TRAIN_RAYS, ..TrainConfig::with_steps(steps) }
 }
 
-pub(super) fn run(a: &TrainArgs) -> Result<(), String> {
+/// The grid and trainer settings of `rnerf train` and `rnerf compare`: the defaults
+/// ([`default_train_config`], log2T = 19) with the command line's steps, rays, table size and
+/// seed; images without alpha (every pixel shows a surface) train over random background
+/// colours, others over white (what their alpha was composited over).
+pub(super) fn trainer_settings(
+    steps: Option<u32>,
+    rays: Option<usize>,
+    log2t: Option<u32>,
+    seed: Option<u64>,
+    had_alpha: bool,
+) -> (HashGridConfig, TrainConfig) {
+    let grid = HashGridConfig {
+        log2_table_size: log2t.unwrap_or(HashGridConfig::default().log2_table_size),
+        ..Default::default()
+    };
+    let mut cfg = default_train_config(steps.unwrap_or(TRAIN_STEPS));
+    cfg.rays_per_step = rays.unwrap_or(cfg.rays_per_step);
+    cfg.seed = seed.unwrap_or(cfg.seed);
+    cfg.background = LoadOptions::default().background;
+    cfg.random_background = !had_alpha;
+    (grid, cfg)
+}
+
+/// Loads the frozen background model at `path` (given with `flag`): a plain NeRF.
+pub(super) fn load_background(path: &Path, flag: &str) -> Result<Nerf, String> {
+    match load_model(path).map_err(|e| format!("{flag}: {e}"))? {
+        LoadedModel::Nerf(n) => Ok(*n),
+        LoadedModel::Residual(_) => {
+            Err(format!("{}: {flag}: a residual model; expected a plain NeRF of the empty workspace", path.display()))
+        }
+    }
+}
+
+/// Gives `data` the background model's scene box `bg_box`; a dataset whose own `aabb` differs
+/// is refused (a residual field lives in its background's box).
+pub(super) fn adopt_background_box(data: &mut Dataset, bg_box: Aabb, bg_path: &Path) -> Result<(), String> {
+    let same = (data.aabb.min - bg_box.min).abs().max_element() <= 1e-5
+        && (data.aabb.max - bg_box.max).abs().max_element() <= 1e-5;
+    if data.aabb_source == AabbSource::File && !same {
+        return Err(format!(
+            "{}: field 'aabb' {:?}..{:?} differs from the background {}'s scene box {:?}..{:?}",
+            data.json.display(),
+            data.aabb.min.to_array(),
+            data.aabb.max.to_array(),
+            bg_path.display(),
+            bg_box.min.to_array(),
+            bg_box.max.to_array()
+        ));
+    }
+    data.aabb = bg_box;
+    Ok(())
+}
+
+pub(super) fn run(a: &crate::cli::TrainArgs) -> Result<(), String> {
     check_output_file(&a.out, "--out")?;
     if let Some(csv) = &a.csv {
         check_output_file(csv, "--csv")?;
     }
     // The background first: a wrong one must stop us before any work.
-    let background = match &a.background {
-        None => None,
-        Some(p) => match load_model(p).map_err(|e| format!("--background: {e}"))? {
-            LoadedModel::Nerf(n) => Some(*n),
-            LoadedModel::Residual(_) => {
-                return Err(format!(
-                    "{}: --background: a residual model; expected a plain NeRF of the empty workspace",
-                    p.display()
-                ))
-            }
-        },
-    };
+    let background = a.background.as_deref().map(|p| load_background(p, "--background")).transpose()?;
     let opts = LoadOptions { ground_truth: false, ..Default::default() };
     let mut data = Dataset::load(&a.data, &a.split, &opts).map_err(|e| e.to_string())?;
     if let (Some(bg), Some(p)) = (&background, &a.background) {
-        let b = bg.field.config().aabb;
-        match data.aabb_source {
-            AabbSource::File
-                if (data.aabb.min - b.min).abs().max_element() > 1e-5
-                    || (data.aabb.max - b.max).abs().max_element() > 1e-5 =>
-            {
-                return Err(format!(
-                    "{}: field 'aabb' {:?}..{:?} differs from the background model {}'s scene box {:?}..{:?}",
-                    data.json.display(),
-                    data.aabb.min.to_array(),
-                    data.aabb.max.to_array(),
-                    p.display(),
-                    b.min.to_array(),
-                    b.max.to_array()
-                ));
-            }
-            _ => data.aabb = b,
-        }
+        adopt_background_box(&mut data, bg.field.config().aabb, p)?;
     }
     let (w, h) = (data.views[0].intrinsics.width, data.views[0].intrinsics.height);
     let source = match data.aabb_source {
@@ -99,19 +105,12 @@ pub(super) fn run(a: &TrainArgs) -> Result<(), String> {
         data.aabb.min.to_array(),
         data.aabb.max.to_array()
     );
-    let grid = HashGridConfig {
-        log2_table_size: a.log2t.unwrap_or(HashGridConfig::default().log2_table_size),
-        ..Default::default()
-    };
+    let (grid, mut cfg) = trainer_settings(a.steps, a.rays, a.log2t, a.seed, data.had_alpha);
     let field = NerfConfig { grid, aabb: data.aabb };
-    let mut cfg = default_train_config(a.steps.unwrap_or(TRAIN_STEPS));
-    cfg.rays_per_step = a.rays.unwrap_or(cfg.rays_per_step);
-    cfg.seed = a.seed.unwrap_or(cfg.seed);
     cfg.distortion = a.distortion.unwrap_or(cfg.distortion);
     cfg.schedule.base = a.lr.unwrap_or(cfg.schedule.base);
     cfg.near_gradient_distance = a.near_grad.unwrap_or(cfg.near_gradient_distance);
-    cfg.background = opts.background;
-    cfg.random_background = !data.had_alpha && a.random_bg.unwrap_or(true);
+    cfg.random_background &= a.random_bg.unwrap_or(true);
     let isa = Isa::detect();
     eprintln!(
         "rnerf train: {} steps x {} rays, log2 T = {}, distortion {}, seed {}, cpu level {isa}, {} threads",

@@ -106,18 +106,28 @@ impl Method {
     /// Residual-NeRF-S (paper Eq. 6).
     pub const RESIDUAL_S: Method = Method::Residual { kind: MixKind::Sum, shared: false };
 
-    /// The name used in tables, file names and `--methods`.
-    pub fn name(&self) -> &'static str {
+    /// (name in file names, json and `--methods`; label in tables and plots).
+    fn name_and_label(&self) -> (&'static str, &'static str) {
+        use DensityMix::{Activated, Raw};
         match self {
-            Method::Dex => "dex",
-            Method::Residual { kind: MixKind::Sum, .. } => "residual-s",
-            Method::Residual { kind: MixKind::Mixnet(DensityMix::Raw), shared: false } => "residual",
-            Method::Residual { kind: MixKind::Mixnet(DensityMix::Activated), shared: false } => "residual-activated",
-            Method::Residual { kind: MixKind::Mixnet(DensityMix::Raw), shared: true } => "residual-shared",
-            Method::Residual { kind: MixKind::Mixnet(DensityMix::Activated), shared: true } => {
-                "residual-activated-shared"
+            Method::Dex => ("dex", "Dex-NeRF"),
+            Method::Residual { kind: MixKind::Sum, .. } => ("residual-s", "Residual-NeRF-S"),
+            Method::Residual { kind: MixKind::Mixnet(Raw), shared: false } => ("residual", "Residual-NeRF"),
+            Method::Residual { kind: MixKind::Mixnet(Activated), shared: false } => {
+                ("residual-activated", "Residual-NeRF (activated mix)")
+            }
+            Method::Residual { kind: MixKind::Mixnet(Raw), shared: true } => {
+                ("residual-shared", "Residual-NeRF (shared encoding)")
+            }
+            Method::Residual { kind: MixKind::Mixnet(Activated), shared: true } => {
+                ("residual-activated-shared", "Residual-NeRF (activated, shared)")
             }
         }
+    }
+
+    /// The name used in file names, json and `--methods`.
+    pub fn name(&self) -> &'static str {
+        self.name_and_label().0
     }
 
     /// The method called `name` (see [`Method::name`]).
@@ -136,14 +146,7 @@ impl Method {
     }
 
     fn label(&self) -> &'static str {
-        match self.name() {
-            "dex" => "Dex-NeRF",
-            "residual" => "Residual-NeRF",
-            "residual-activated" => "Residual-NeRF (activated mix)",
-            "residual-shared" => "Residual-NeRF (shared encoding)",
-            "residual-activated-shared" => "Residual-NeRF (activated, shared)",
-            _ => "Residual-NeRF-S",
-        }
+        self.name_and_label().1
     }
 }
 
