@@ -35,7 +35,8 @@ fn main() {
             s.occupancy,
             s.seconds
         )
-    });
+    })
+    .expect("the synthesised tabletop trains");
     for (vi, (v, gt)) in test.views.iter().zip(&test.depth).enumerate() {
         let r = nerf.render(isa, &v.intrinsics, &v.pose, cfg.background, DensityThreshold::Sigma(3.0));
         let mut errors = DepthErrors::default();

@@ -12,9 +12,14 @@ pub const USAGE: &str = "usage: rnerf <command> [options]
 commands:
   train  --data DIR --out MODEL [--steps N] [--rays N] [--log2t N] [--seed S] [--threads N]
          [--split NAME] [--csv FILE] [--lr LR] [--distortion L] [--near-grad D] [--fixed-background] [--background BG_MODEL [--mix mixnet|sum]
-         [--density-mix raw|activated] [--mixnet-encoding own|shared]]
+         [--density-mix raw|activated] [--mixnet-encoding own|shared]] [--checkpoint-every N]
          train a NeRF on DIR's transforms_<split>.json (default split: train); with --background,
-         a Residual-NeRF (residual + Mixnet over the frozen background; --mix sum: Residual-NeRF-S)
+         a Residual-NeRF (residual + Mixnet over the frozen background; --mix sum: Residual-NeRF-S).
+         Checkpoints go to MODEL with '.ckpt' before the extension (every N steps, and on
+         SIGINT/SIGTERM, which then exit 130/143); a finished run removes its checkpoint
+  train  --resume CHECKPOINT --data DIR --out MODEL [--split NAME] [--csv FILE] [--threads N]
+         [--checkpoint-every N]
+         continue an interrupted run bit-exactly, with the checkpoint's settings, on the same data
   render --model MODEL --data DIR --out DIR [--split NAME] [--depth threshold|expected]
          [--m M | --m-raw S] [--threads N]
          depth (EXR metres, 16-bit PNG mm, .npy metres, colourised PNG) and RGB of the split's views
@@ -167,6 +172,11 @@ pub struct TrainArgs {
     /// `Some(false)`: train over the fixed background colour even for images without
     /// alpha (`--fixed-background`).
     pub random_bg: Option<bool>,
+    /// Steps between checkpoints (`--checkpoint-every`); none when absent (an interrupted run
+    /// still writes one).
+    pub checkpoint_every: Option<u32>,
+    /// A checkpoint to continue from with its own settings (`--resume`).
+    pub resume: Option<PathBuf>,
 }
 
 /// Arguments of `rnerf compare`.
@@ -256,6 +266,8 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             "lr",
             "near-grad",
             "fixed-background",
+            "checkpoint-every",
+            "resume",
         ],
         "render" => &["model", "data", "out", "split", "depth", "m", "m-raw", "threads"],
         "eval" => &["model", "data", "split", "depth", "m", "m-raw", "crop", "limit", "json", "threads"],
@@ -291,6 +303,27 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
         }
     }
     let threads = f.threads;
+    if f.resume.is_some() {
+        const SETTINGS: [&str; 12] = [
+            "steps",
+            "rays",
+            "log2t",
+            "seed",
+            "background",
+            "mix",
+            "density-mix",
+            "mixnet-encoding",
+            "distortion",
+            "lr",
+            "near-grad",
+            "fixed-background",
+        ];
+        if let Some(s) = f.given.iter().find(|g| SETTINGS.contains(&g.as_str())) {
+            return Err(err(format!(
+                "train: --resume continues with the checkpoint's own settings; --{s} cannot change them"
+            )));
+        }
+    }
     Ok(match command.as_str() {
         "train" => Command::Train(TrainArgs {
             data: f.need_path("data", &command)?,
@@ -309,6 +342,8 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             lr: f.lr,
             near_grad: f.near_grad,
             random_bg: f.fixed_background.then_some(false),
+            checkpoint_every: f.checkpoint_every,
+            resume: f.resume.clone(),
         }),
         "render" => Command::Render {
             model: f.need_path("model", &command)?,
@@ -390,11 +425,18 @@ struct Flags {
     scenes: Vec<PathBuf>,
     methods: Option<Vec<crate::compare::Method>>,
     eval_every: Option<u32>,
+    checkpoint_every: Option<u32>,
+    resume: Option<PathBuf>,
+    /// Flags given, in order.
+    given: Vec<String>,
 }
 
 impl Flags {
     fn take(&mut self, name: &str, p: &mut lexopt::Parser) -> Result<(), CliError> {
+        self.given.push(name.to_string());
         match name {
+            "checkpoint-every" => self.checkpoint_every = Some(positive(p, name)?),
+            "resume" => self.resume = Some(path(p, name)?),
             "json" => self.json = true,
             "fixed-background" => self.fixed_background = true,
             "data" => self.data = Some(path(p, name)?),

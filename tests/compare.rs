@@ -17,7 +17,7 @@ fn scratch(name: &str) -> PathBuf {
 
 fn run(args: &[&str]) -> Result<(), String> {
     let command = parse(args.iter().map(OsString::from)).map_err(|e| e.to_string())?;
-    app::run(command)
+    app::run(command).map_err(|f| f.message)
 }
 
 /// Background: 12 views; scene: 6 training views on other poses, 2 test views.

@@ -35,7 +35,7 @@ fn small_nerf() -> Nerf {
         decay: 0.95,
         ..Default::default()
     };
-    train_nerf(Isa::detect(), &scene.views, field, &cfg, 0, |_| {})
+    train_nerf(Isa::detect(), &scene.views, field, &cfg, 0, |_| {}).expect("trains")
 }
 
 fn bytes_of(nerf: &Nerf) -> Vec<u8> {
@@ -151,7 +151,7 @@ fn residual_model_round_trips_with_its_background_embedded() {
         (MixKind::Sum, own),
     ] {
         let config = ResidualConfig { residual: bg.field.config().clone(), kind, mixnet };
-        let model = train_residual(Isa::detect(), bg.clone(), &scene.views, config, &cfg, 0, |_| {});
+        let model = train_residual(Isa::detect(), bg.clone(), &scene.views, config, &cfg, 0, |_| {}).expect("trains");
         assert!(model.field.background.params == bg.params, "training must not touch the background");
         let dir = scratch("residual");
         let path = dir.join("r.safetensors");

@@ -32,7 +32,7 @@ fn segmented_rendering_equals_whole_ray_compositing() {
         ..Default::default()
     };
     let isa = Isa::detect();
-    let nerf = train_nerf(isa, &scene.views, field, &cfg, 0, |_| {});
+    let nerf = train_nerf(isa, &scene.views, field, &cfg, 0, |_| {}).expect("trains");
     let test = synth::tabletop(16, 2, 0.4);
     let mut renderer = ViewRenderer::new();
     for m in [DensityThreshold::Sigma(3.0), DensityThreshold::Raw(1.0)] {

@@ -25,11 +25,11 @@ fn residual_nerf_beats_dex_nerf_in_the_glass_crop() {
     let demo = residual_nerf::app::demo_config(300, 0);
     let (field, cfg) = (demo.field, demo.train);
     let t0 = std::time::Instant::now();
-    let background = train_nerf(isa, &bg_views.views, field.clone(), &cfg, 0, |_| {});
-    let dex = train_nerf(isa, &scene_views.views, field.clone(), &cfg, 0, |_| {});
+    let background = train_nerf(isa, &bg_views.views, field.clone(), &cfg, 0, |_| {}).expect("trains");
+    let dex = train_nerf(isa, &scene_views.views, field.clone(), &cfg, 0, |_| {}).expect("trains");
     let config =
         ResidualConfig { residual: field, kind: MixKind::Mixnet(DensityMix::Raw), mixnet: MixnetEncoding::default() };
-    let residual = train_residual(isa, background, &scene_views.views, config, &cfg, 0, |_| {});
+    let residual = train_residual(isa, background, &scene_views.views, config, &cfg, 0, |_| {}).expect("trains");
     let m = DensityThreshold::Sigma(3.0);
     let (mut e_dex, mut e_res) = (DepthErrors::default(), DepthErrors::default());
     let mut beta_in = (0.0, 0);

@@ -34,7 +34,7 @@ fn nerf_learns_a_synthesised_tabletop() {
     };
     let isa = Isa::detect();
     let t0 = std::time::Instant::now();
-    let nerf = train_nerf(isa, &train.views, field, &cfg, 40, |s| eprintln!("{s:?}"));
+    let nerf = train_nerf(isa, &train.views, field, &cfg, 40, |s| eprintln!("{s:?}")).expect("trains");
     let secs = t0.elapsed().as_secs_f64();
 
     let px: Vec<[f32; 3]> = test.views.iter().flat_map(|v| v.rgb.iter().copied()).collect();
@@ -90,7 +90,7 @@ fn training_is_thread_count_independent() {
             .num_threads(threads)
             .build()
             .unwrap()
-            .install(|| train_nerf(Isa::detect(), &scene.views, field.clone(), &cfg, 0, |_| {}))
+            .install(|| train_nerf(Isa::detect(), &scene.views, field.clone(), &cfg, 0, |_| {}).expect("trains"))
     };
     let (a, b) = (run(1), run(2));
     assert!(a.params == b.params, "parameters differ between 1 and 2 threads");

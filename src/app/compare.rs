@@ -96,7 +96,7 @@ pub(super) fn run(a: &crate::cli::CompareArgs) -> Result<(), String> {
     let background = match background {
         Background::Model(m) => *m,
         Background::Data(data) => {
-            let nerf = train_background(isa, &data.views, &cfg);
+            let nerf = train_background(isa, &data.views, &cfg)?;
             let path = a.out.join("background.safetensors");
             save_nerf(&path, &nerf, &[("train_data", a.background.display().to_string())])?;
             eprintln!("rnerf compare: wrote {}", path.display());
@@ -108,11 +108,12 @@ pub(super) fn run(a: &crate::cli::CompareArgs) -> Result<(), String> {
 }
 
 /// Trains the background NeRF with the comparison's settings, showing progress.
-pub fn train_background(isa: Isa, views: &[View], cfg: &CompareConfig) -> Nerf {
+pub fn train_background(isa: Isa, views: &[View], cfg: &CompareConfig) -> Result<Nerf, String> {
     let mut progress = Progress::new("background", cfg.train.steps as u64);
     train_nerf(isa, views, cfg.field.clone(), &cfg.train, 10, |s| {
         progress.update(s.step as u64 + 1, &format!("PSNR {:.2} dB", -10.0 * (s.loss as f64).log10()))
     })
+    .map_err(|e| format!("background: {e}"))
 }
 
 /// Runs every method on every scene and writes the results into `out`: `table.md` (also
@@ -138,7 +139,7 @@ pub fn compare_and_write(
                 &format!("PSNR {:.2} dB  {:.0} samples/ray", -10.0 * (st.loss as f64).log10(), st.samples_per_ray),
             );
         };
-        let r = compare::run_scene(isa, &s.name, background, &s.train, &s.test, methods, cfg, &mut log);
+        let r = compare::run_scene(isa, &s.name, background, &s.train, &s.test, methods, cfg, &mut log)?;
         let dir = out.join(&r.name);
         std::fs::create_dir_all(&dir).map_err(|e| format!("{}: cannot create: {e}", dir.display()))?;
         export::write(&dir.join("curves.png"), compare::curves_png(&r))?;
@@ -255,7 +256,7 @@ pub(super) fn demo(out: &Path, steps: Option<u32>, seed: Option<u64>) -> Result<
         cfg.train.steps,
         rayon::current_num_threads()
     );
-    let background = train_background(isa, &bg.views, &cfg);
+    let background = train_background(isa, &bg.views, &cfg)?;
     let scenes = [SceneData { name: "glass".into(), train: scene.views, test: EvalSet::from_synth(&test) }];
     compare_and_write(isa, &background, &scenes, &Method::paper(), &cfg, out)?;
     eprintln!(

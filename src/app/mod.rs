@@ -11,13 +11,28 @@ mod train;
 pub use compare::{compare_and_write, demo_config, train_background, SceneData, DEMO};
 pub use eval::{evaluate, EvalReport};
 pub use progress::Progress;
-pub use train::{default_train_config, TRAIN_RAYS, TRAIN_STEPS};
+pub use train::{checkpoint_path, default_train_config, TRAIN_RAYS, TRAIN_STEPS};
 
 use crate::bench::{self, BenchOptions};
 use crate::cli::Command;
 
+/// A failed command: its one-line message and the process's exit code.
+#[derive(Debug)]
+pub struct Failure {
+    /// One line naming the file, frame and field.
+    pub message: String,
+    /// 1 for errors; 128 + signal for an interrupted run.
+    pub code: u8,
+}
+
+impl From<String> for Failure {
+    fn from(message: String) -> Failure {
+        Failure { message, code: 1 }
+    }
+}
+
 /// Runs a parsed command.
-pub fn run(command: Command) -> Result<(), String> {
+pub fn run(command: Command) -> Result<(), Failure> {
     match command {
         Command::Help => println!("{}", crate::cli::USAGE),
         Command::Train(args) => {

@@ -1,17 +1,24 @@
-//! `rnerf train`: dataset → NeRF → model file.
+//! `rnerf train`: dataset → NeRF (or residual model) → model file, with checkpoints, resume
+//! and graceful interruption.
 
-use super::{check_output_file, Progress};
+use super::{check_output_file, Failure, Progress};
+use crate::cli::TrainArgs;
 use crate::data::{AabbSource, Dataset, LoadOptions};
 use crate::encoding::HashGridConfig;
 use crate::field::mix::{DensityMix, MixKind};
-use crate::field::residual::ResidualConfig;
-use crate::field::{Nerf, NerfConfig};
-use crate::io::{load_model, save_nerf, save_residual, write_atomic, LoadedModel};
+use crate::field::residual::{ResidualConfig, ResidualField, ResidualModel};
+use crate::field::{Nerf, NerfConfig, NerfField};
+use crate::io::{
+    load_checkpoint, load_model, save_checkpoint, save_model, views_fingerprint, write_atomic, LoadedModel, ModelFile,
+};
 use crate::render::Aabb;
 use crate::simd::Isa;
-use crate::train::trainer::{train_nerf, train_residual, StepStats, TrainConfig};
+use crate::train::trainer::{TrainConfig, Trainer};
+use signal_hook::consts::{SIGINT, SIGTERM};
 use std::fmt::Write as _;
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::Arc;
 
 /// Default training steps: with [`TRAIN_RAYS`], about 6.5 minutes for 100 views of 200×200 on
 /// this project's 2-core machine (see README).
@@ -81,18 +88,35 @@ pub(super) fn adopt_background_box(data: &mut Dataset, bg_box: Aabb, bg_path: &P
     Ok(())
 }
 
-pub(super) fn run(a: &crate::cli::TrainArgs) -> Result<(), String> {
+/// Where `rnerf train --out MODEL` keeps its checkpoint: MODEL with `.ckpt` before the
+/// extension (`bg.safetensors` → `bg.ckpt.safetensors`).
+pub fn checkpoint_path(out: &Path) -> PathBuf {
+    let stem = out.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let name = match out.extension() {
+        Some(ext) => format!("{stem}.ckpt.{}", ext.to_string_lossy()),
+        None => format!("{stem}.ckpt"),
+    };
+    out.with_file_name(name)
+}
+
+pub(super) fn run(a: &TrainArgs) -> Result<(), Failure> {
     check_output_file(&a.out, "--out")?;
     if let Some(csv) = &a.csv {
         check_output_file(csv, "--csv")?;
     }
-    // The background first: a wrong one must stop us before any work.
-    let background = a.background.as_deref().map(|p| load_background(p, "--background")).transpose()?;
-    let opts = LoadOptions { ground_truth: false, ..Default::default() };
-    let mut data = Dataset::load(&a.data, &a.split, &opts).map_err(|e| e.to_string())?;
-    if let (Some(bg), Some(p)) = (&background, &a.background) {
-        adopt_background_box(&mut data, bg.field.config().aabb, p)?;
+    match &a.resume {
+        None => fresh(a),
+        Some(path) => resume(a, path),
     }
+}
+
+/// Loads the dataset of `a` (errors name it).
+fn load_data(a: &TrainArgs) -> Result<Dataset, String> {
+    let opts = LoadOptions { ground_truth: false, ..Default::default() };
+    Dataset::load(&a.data, &a.split, &opts).map_err(|e| e.to_string())
+}
+
+fn describe_data(data: &Dataset) {
     let (w, h) = (data.views[0].intrinsics.width, data.views[0].intrinsics.height);
     let source = match data.aabb_source {
         AabbSource::File => "from the json's 'aabb'",
@@ -105,6 +129,16 @@ pub(super) fn run(a: &crate::cli::TrainArgs) -> Result<(), String> {
         data.aabb.min.to_array(),
         data.aabb.max.to_array()
     );
+}
+
+fn fresh(a: &TrainArgs) -> Result<(), Failure> {
+    // The background first: a wrong one must stop us before any work.
+    let background = a.background.as_deref().map(|p| load_background(p, "--background")).transpose()?;
+    let mut data = load_data(a)?;
+    if let (Some(bg), Some(p)) = (&background, &a.background) {
+        adopt_background_box(&mut data, bg.field.config().aabb, p)?;
+    }
+    describe_data(&data);
     let (grid, mut cfg) = trainer_settings(a.steps, a.rays, a.log2t, a.seed, data.had_alpha);
     let field = NerfConfig { grid, aabb: data.aabb };
     cfg.distortion = a.distortion.unwrap_or(cfg.distortion);
@@ -112,42 +146,6 @@ pub(super) fn run(a: &crate::cli::TrainArgs) -> Result<(), String> {
     cfg.near_gradient_distance = a.near_grad.unwrap_or(cfg.near_gradient_distance);
     cfg.random_background &= a.random_bg.unwrap_or(true);
     let isa = Isa::detect();
-    eprintln!(
-        "rnerf train: {} steps x {} rays, log2 T = {}, distortion {}, seed {}, cpu level {isa}, {} threads",
-        cfg.steps,
-        cfg.rays_per_step,
-        field.grid.log2_table_size,
-        cfg.distortion,
-        cfg.seed,
-        rayon::current_num_threads()
-    );
-    let mut progress = Progress::new("train", cfg.steps as u64);
-    let mut csv = String::from("step,seconds,loss,psnr,samples_per_ray,marched_per_ray,occupancy,lr\n");
-    let log = |s: StepStats| {
-        let psnr = -10.0 * (s.loss as f64).log10();
-        let rays_per_s = (s.step + 1) as f64 * cfg.rays_per_step as f64 / s.seconds;
-        let _ = writeln!(
-            csv,
-            "{},{:.3},{:.6},{psnr:.3},{:.2},{:.2},{:.4},{:.3e}",
-            s.step + 1,
-            s.seconds,
-            s.loss,
-            s.samples_per_ray,
-            s.marched_per_ray,
-            s.occupancy,
-            cfg.schedule.lr(s.step)
-        );
-        progress.update(
-            (s.step + 1) as u64,
-            &format!(
-                "{:.1} k rays/s  loss {:.5}  PSNR {psnr:.2} dB  {:.0}/{:.0} samples/ray",
-                rays_per_s / 1e3,
-                s.loss,
-                s.samples_per_ray,
-                s.marched_per_ray
-            ),
-        );
-    };
     let mut extra = vec![
         ("train_steps", cfg.steps.to_string()),
         ("train_rays_per_step", cfg.rays_per_step.to_string()),
@@ -159,25 +157,176 @@ pub(super) fn run(a: &crate::cli::TrainArgs) -> Result<(), String> {
         ("train_data", a.data.display().to_string()),
         ("train_split", a.split.clone()),
     ];
-    match background {
-        None => {
-            let nerf = train_nerf(isa, &data.views, field, &cfg, 10, log);
-            extra.push(("train_seconds", format!("{:.1}", progress.seconds())));
-            save_nerf(&a.out, &nerf, &extra)?;
-        }
-        Some(bg) => {
+    describe_run(&cfg, field.grid.log2_table_size, isa);
+    match (background, &a.background) {
+        (Some(bg), Some(bg_path)) => {
             let kind = a.mix.unwrap_or(MixKind::Mixnet(DensityMix::Raw));
             let mixnet = a.mixnet.unwrap_or_default();
-            eprintln!(
-                "rnerf train: residual model over {} ({kind:?}, Mixnet encoding {mixnet:?})",
-                a.background.as_ref().unwrap().display()
-            );
-            let config = ResidualConfig { residual: field, kind, mixnet };
-            let model = train_residual(isa, bg, &data.views, config, &cfg, 10, log);
-            extra.push(("train_seconds", format!("{:.1}", progress.seconds())));
-            extra.push(("background_file", a.background.as_ref().unwrap().display().to_string()));
-            save_residual(&a.out, &model, &extra)?;
+            eprintln!("rnerf train: residual model over {} ({kind:?}, Mixnet encoding {mixnet:?})", bg_path.display());
+            extra.push(("background_file", bg_path.display().to_string()));
+            let model = ResidualField::new(bg, ResidualConfig { residual: field, kind, mixnet });
+            let trainer = Trainer::new(isa, &model, data.aabb, &data.views, &cfg);
+            drive(a, &model, trainer, &extra)
         }
+        _ => {
+            let model = NerfField::new(field);
+            let trainer = Trainer::new(isa, &model, data.aabb, &data.views, &cfg);
+            drive(a, &model, trainer, &extra)
+        }
+    }
+}
+
+fn describe_run(cfg: &TrainConfig, log2t: u32, isa: Isa) {
+    eprintln!(
+        "rnerf train: {} steps x {} rays, log2 T = {log2t}, distortion {}, seed {}, cpu level {isa}, {} threads",
+        cfg.steps,
+        cfg.rays_per_step,
+        cfg.distortion,
+        cfg.seed,
+        rayon::current_num_threads()
+    );
+}
+
+/// `--resume`: the model, optimiser state and settings from the checkpoint; the data must be
+/// the data it was trained on.
+fn resume(a: &TrainArgs, path: &Path) -> Result<(), Failure> {
+    let (model, checkpoint) = load_checkpoint(path).map_err(|e| format!("--resume: {e}"))?;
+    let mut data = load_data(a)?;
+    let aabb = match &model {
+        LoadedModel::Nerf(n) => n.field.config().aabb,
+        LoadedModel::Residual(m) => m.field.residual().config().aabb,
+    };
+    data.aabb = aabb;
+    describe_data(&data);
+    if views_fingerprint(&data.views) != checkpoint.fingerprint {
+        return Err(format!(
+            "{}: split '{}' is not the data the checkpoint {} was trained on (its views, poses or pixels differ)",
+            data.json.display(),
+            a.split,
+            path.display()
+        )
+        .into());
+    }
+    let isa = Isa::detect();
+    let extra = vec![
+        ("train_steps", checkpoint.config.steps.to_string()),
+        ("train_rays_per_step", checkpoint.config.rays_per_step.to_string()),
+        ("train_seed", checkpoint.config.seed.to_string()),
+        ("train_data", a.data.display().to_string()),
+        ("train_split", a.split.clone()),
+        ("train_resumed_from", format!("{} at step {}", path.display(), checkpoint.step)),
+    ];
+    let cfg = checkpoint.config.clone();
+    eprintln!("rnerf train: resuming {} at step {} of {}", path.display(), checkpoint.step, cfg.steps);
+    let at = |e: String| format!("--resume: {}: {e}", path.display());
+    match model {
+        LoadedModel::Nerf(n) => {
+            let Nerf { field, params, occupancy } = *n;
+            describe_run(&cfg, field.config().grid.log2_table_size, isa);
+            let state = checkpoint.into_state(&field, params, occupancy).map_err(at)?;
+            let trainer = Trainer::from_state(isa, &field, &data.views, &cfg, state).map_err(at)?;
+            drive(a, &field, trainer, &extra)
+        }
+        LoadedModel::Residual(m) => {
+            let ResidualModel { field, params, occupancy } = *m;
+            describe_run(&cfg, field.residual().config().grid.log2_table_size, isa);
+            let state = checkpoint.into_state(&field, params, occupancy).map_err(at)?;
+            let trainer = Trainer::from_state(isa, &field, &data.views, &cfg, state).map_err(at)?;
+            drive(a, &field, trainer, &extra)
+        }
+    }
+}
+
+/// Runs `trainer` to the end with progress, the metrics log, checkpoints every
+/// `--checkpoint-every` steps, and SIGINT / SIGTERM handling (finish the step, checkpoint,
+/// exit 128 + signal); writes the model to `--out` and removes the checkpoint. A run that
+/// fails ([`crate::train::trainer::TrainError`]) checkpoints its last good state and fails.
+fn drive<M: ModelFile>(
+    a: &TrainArgs,
+    model: &M,
+    mut trainer: Trainer<'_, M>,
+    extra: &[(&str, String)],
+) -> Result<(), Failure> {
+    let signal = Arc::new(AtomicUsize::new(0));
+    for sig in [SIGINT, SIGTERM] {
+        // A second signal while the checkpoint is written ends the process at once.
+        signal_hook::flag::register_conditional_shutdown(sig, 128 + sig, Arc::new(AtomicBool::new(false)))
+            .and_then(|_| signal_hook::flag::register_usize(sig, signal.clone(), sig as usize))
+            .map_err(|e| format!("cannot install the signal handler: {e}"))?;
+    }
+    let cfg = trainer.config().clone();
+    let ckpt = checkpoint_path(&a.out);
+    let fingerprint = views_fingerprint(trainer.views());
+    let save_checkpoint_now = |trainer: &Trainer<'_, M>| -> Result<(), String> {
+        save_checkpoint(&ckpt, model, trainer.state(), &cfg, fingerprint, extra)
+    };
+    let mut progress = Progress::new("train", cfg.steps as u64);
+    let mut csv = String::from("step,seconds,loss,psnr,samples_per_ray,marched_per_ray,occupancy,lr,skipped\n");
+    while !trainer.is_done() {
+        let sig = signal.load(Ordering::SeqCst);
+        if sig != 0 {
+            save_checkpoint_now(&trainer)?;
+            let step = trainer.state().step;
+            return Err(Failure {
+                message: format!(
+                    "interrupted (signal {sig}) after step {step}; checkpoint written to {} — continue with \
+                     'rnerf train --resume {} --data {} --out {}'",
+                    ckpt.display(),
+                    ckpt.display(),
+                    a.data.display(),
+                    a.out.display()
+                ),
+                code: 128 + sig as u8,
+            });
+        }
+        let s = match trainer.step() {
+            Ok(s) => s,
+            Err(e) => {
+                let saved = match save_checkpoint_now(&trainer) {
+                    Ok(()) => format!("last good state saved to {}", ckpt.display()),
+                    Err(w) => format!("last good state not saved: {w}"),
+                };
+                return Err(format!("{e}; {saved}").into());
+            }
+        };
+        let done = s.step + 1;
+        if done % 10 == 0 || done == cfg.steps {
+            let psnr = -10.0 * (s.loss as f64).log10();
+            let rays_per_s = done as f64 * cfg.rays_per_step as f64 / s.seconds.max(1e-9);
+            let _ = writeln!(
+                csv,
+                "{done},{:.3},{:.6},{psnr:.3},{:.2},{:.2},{:.4},{:.3e},{}",
+                s.seconds,
+                s.loss,
+                s.samples_per_ray,
+                s.marched_per_ray,
+                s.occupancy,
+                cfg.schedule.lr(s.step),
+                s.skipped
+            );
+            progress.update(
+                done as u64,
+                &format!(
+                    "{:.1} k rays/s  loss {:.5}  PSNR {psnr:.2} dB  {:.0}/{:.0} samples/ray{}",
+                    rays_per_s / 1e3,
+                    s.loss,
+                    s.samples_per_ray,
+                    s.marched_per_ray,
+                    if s.skipped > 0 { format!("  {} skipped", s.skipped) } else { String::new() }
+                ),
+            );
+        }
+        if a.checkpoint_every.is_some_and(|n| done % n == 0) && done < cfg.steps {
+            save_checkpoint_now(&trainer)?;
+        }
+    }
+    let state = trainer.into_state();
+    let mut extra = extra.to_vec();
+    extra.push(("train_seconds", format!("{:.1}", state.seconds)));
+    extra.push(("train_skipped_steps", state.skipped.to_string()));
+    save_model(&a.out, model, &state.params, &state.occupancy, &extra)?;
+    if ckpt.exists() {
+        std::fs::remove_file(&ckpt).map_err(|e| format!("{}: cannot remove the checkpoint: {e}", ckpt.display()))?;
     }
     if let Some(path) = &a.csv {
         write_atomic(path, csv.as_bytes())?;

@@ -382,7 +382,7 @@ pub fn run(opts: &BenchOptions) -> BenchReport {
     let mut cfg = TrainConfig::with_steps(scaled(160.0).max(8) as u32);
     cfg.rays_per_step = 2048;
     let mut log = Vec::new();
-    let nerf = train_nerf(isa, &scene.views, field, &cfg, 1, |s| log.push(s));
+    let nerf = train_nerf(isa, &scene.views, field, &cfg, 1, |s| log.push(s)).expect("the bench scene trains");
     let from = log.len() * 3 / 4;
     let rates: Vec<f64> = log[from..]
         .windows(2)

@@ -5,13 +5,13 @@ use std::process::ExitCode;
 
 fn main() -> ExitCode {
     let result = residual_nerf::cli::parse(std::env::args_os().skip(1))
-        .map_err(|e| e.to_string())
+        .map_err(|e| residual_nerf::app::Failure::from(e.to_string()))
         .and_then(residual_nerf::app::run);
     match result {
         Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("rnerf: {e}");
-            ExitCode::FAILURE
+        Err(f) => {
+            eprintln!("rnerf: {}", f.message);
+            ExitCode::from(f.code)
         }
     }
 }

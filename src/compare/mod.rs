@@ -27,7 +27,7 @@ use crate::render::view::{RenderedView, Scene};
 use crate::render::{DensityThreshold, Intrinsics, ViewRenderer};
 use crate::simd::Isa;
 use crate::train::model::Model;
-use crate::train::trainer::{train_model, StepStats, TrainConfig, View};
+use crate::train::trainer::{train_model, StepStats, TrainConfig, TrainError, View};
 use std::fmt::Write as _;
 
 /// Test views with ground truth: z-depth per pixel (metres, NaN where unknown) and the scoring
@@ -262,7 +262,7 @@ fn run_method<M: Model>(
     test: &EvalSet,
     cfg: &CompareConfig,
     log: &mut dyn FnMut(Method, &StepStats),
-) -> MethodResult {
+) -> Result<MethodResult, TrainError> {
     let mut curve = Vec::new();
     let mut renderer = ViewRenderer::<M>::new();
     let (mut z, mut truth) = (Vec::new(), Vec::new());
@@ -278,7 +278,7 @@ fn run_method<M: Model>(
                 let errors = crop_errors(isa, &scene, test, cfg.m, &mut renderer, &mut z, &mut truth);
                 curve.push(CurvePoint { step: done, seconds: s.seconds, errors });
             }
-        });
+        })?;
     let seconds = curve.last().map_or(0.0, |p| p.seconds);
     let scene = Scene { model, params: &params, occupancy: &occupancy };
     let (mut threshold, mut expected) = (DepthErrors::default(), DepthErrors::default());
@@ -298,11 +298,12 @@ fn run_method<M: Model>(
         .iter()
         .map(|&m| (m, crop_errors(isa, &scene, test, m, &mut renderer, &mut z, &mut truth)))
         .collect();
-    MethodResult { method, seconds, curve, threshold, expected, psnr, renders, sweep }
+    Ok(MethodResult { method, seconds, curve, threshold, expected, psnr, renders, sweep })
 }
 
 /// Trains and scores every method of `methods` on one scene over the frozen `background`.
-/// `log` sees every method's training progress.
+/// `log` sees every method's training progress. A method whose training fails ends the scene
+/// with an error naming the scene and method.
 pub fn run_scene(
     isa: Isa,
     name: &str,
@@ -312,20 +313,23 @@ pub fn run_scene(
     methods: &[Method],
     cfg: &CompareConfig,
     log: &mut dyn FnMut(Method, &StepStats),
-) -> SceneResult {
+) -> Result<SceneResult, String> {
     let results = methods
         .iter()
-        .map(|&method| match method {
-            Method::Dex => run_method(isa, method, &NerfField::new(cfg.field.clone()), train, test, cfg, log),
-            Method::Residual { kind, shared } => {
-                let mixnet = if shared { MixnetEncoding::Shared } else { MixnetEncoding::Own(cfg.mixnet_grid) };
-                let config = ResidualConfig { residual: cfg.field.clone(), kind, mixnet };
-                let field = ResidualField::new(background.clone(), config);
-                run_method(isa, method, &field, train, test, cfg, log)
+        .map(|&method| {
+            match method {
+                Method::Dex => run_method(isa, method, &NerfField::new(cfg.field.clone()), train, test, cfg, log),
+                Method::Residual { kind, shared } => {
+                    let mixnet = if shared { MixnetEncoding::Shared } else { MixnetEncoding::Own(cfg.mixnet_grid) };
+                    let config = ResidualConfig { residual: cfg.field.clone(), kind, mixnet };
+                    let field = ResidualField::new(background.clone(), config);
+                    run_method(isa, method, &field, train, test, cfg, log)
+                }
             }
+            .map_err(|e| format!("{name}: {}: {e}", method.name()))
         })
-        .collect();
-    SceneResult { name: name.to_string(), methods: results }
+        .collect::<Result<_, _>>()?;
+    Ok(SceneResult { name: name.to_string(), methods: results })
 }
 
 /// Training seconds after which `curve` first scores an RMSE ≤ `target` (None: never).

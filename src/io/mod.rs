@@ -1,9 +1,15 @@
-//! Files the crate writes and reads back: model files (safetensors), atomic writes,
-//! depth and image exports ([`export`]).
+//! Files the crate writes and reads back: model files (safetensors), training checkpoints
+//! (a model file plus the trainer's state), atomic writes, depth and image exports
+//! ([`export`]).
 
 pub mod atomic;
+pub mod checkpoint;
 pub mod export;
 pub mod model;
 
 pub use atomic::{read_limited, write_atomic};
-pub use model::{load_model, load_nerf, model_from_bytes, nerf_from_bytes, save_nerf, save_residual, LoadedModel};
+pub use checkpoint::{load_checkpoint, save_checkpoint, views_fingerprint, Checkpoint};
+pub use model::{
+    load_model, load_nerf, model_from_bytes, nerf_from_bytes, save_model, save_nerf, save_residual, LoadedModel,
+    ModelFile,
+};

@@ -23,6 +23,7 @@ use crate::field::residual::{ResidualConfig, ResidualField, ResidualModel, Resid
 use crate::field::{NerfConfig, NerfField, NerfParams};
 use crate::mlp::LayerShape;
 use crate::render::{Aabb, OccupancyConfig, OccupancyGrid};
+use crate::train::model::Model;
 use crate::train::trainer::Nerf;
 use glam::Vec3;
 use safetensors::tensor::{Dtype, SafeTensors, TensorView};
@@ -165,6 +166,11 @@ impl<'a> ModelReader<'a> {
         self.metadata.get(key).map(String::as_str).ok_or_else(|| format!("metadata key '{key}' missing"))
     }
 
+    /// A tensor's shape.
+    pub fn shape(&self, name: &str) -> Result<Vec<usize>, String> {
+        Ok(self.st.tensor(name).map_err(|_| format!("tensor '{name}' missing"))?.shape().to_vec())
+    }
+
     /// An f32 tensor of exactly `shape`, all finite.
     pub fn tensor(&self, name: &str, shape: &[usize]) -> Result<Vec<f32>, String> {
         let t = self.st.tensor(name).map_err(|_| format!("tensor '{name}' missing"))?;
@@ -282,14 +288,59 @@ pub fn read_model_bytes(path: &Path) -> Result<Vec<u8>, String> {
     super::read_limited(path, MAX_MODEL_BYTES).map_err(|e| format!("{}: model file: {e}", path.display()))
 }
 
-/// Saves a plain NeRF (`kind = "nerf"`) with extra informational metadata.
-pub fn save_nerf(path: &Path, nerf: &Nerf, extra: &[(&str, String)]) -> Result<(), String> {
-    let mut w = ModelWriter::new("nerf");
-    w.nerf("", nerf).map_err(|e| format!("{}: {e}", path.display()))?;
+/// A trainable field a model file holds: what a model file of it contains, given its
+/// parameters and occupancy grid (the trainer's checkpoints use this while training).
+pub trait ModelFile: Model {
+    /// The model's tensors and metadata.
+    fn writer(&self, params: &Self::Params, occupancy: &OccupancyGrid) -> Result<ModelWriter, String>;
+}
+
+impl ModelFile for NerfField {
+    fn writer(&self, params: &NerfParams, occupancy: &OccupancyGrid) -> Result<ModelWriter, String> {
+        let mut w = ModelWriter::new("nerf");
+        w.nerf_parts("", self, params, occupancy)?;
+        Ok(w)
+    }
+}
+
+impl ModelFile for ResidualField {
+    fn writer(&self, params: &ResidualParams, occupancy: &OccupancyGrid) -> Result<ModelWriter, String> {
+        let mut w = ModelWriter::new("residual");
+        w.nerf("background.", &self.background)?;
+        w.nerf_parts("residual.", self.residual(), &params.residual, occupancy)?;
+        w.meta("mix", mix_name(self.kind()));
+        let mixnet = self.mixnet();
+        match mixnet.grid() {
+            Some(grid) => {
+                w.meta("mixnet_grid", &grid_json(grid.config()).to_string());
+                let entries = params.mixnet.grid.master.len() / 2;
+                w.tensor("mixnet.grid.params", vec![entries, 2], &params.mixnet.grid.master)?;
+            }
+            None => w.meta("mixnet_grid", "\"shared\""),
+        }
+        w.mlp("mixnet", params.mixnet.mlp.weights(), mixnet.mlp().layers())?;
+        Ok(w)
+    }
+}
+
+/// Saves `field` with `params` and `occupancy` plus extra informational metadata, atomically.
+pub fn save_model<M: ModelFile>(
+    path: &Path,
+    field: &M,
+    params: &M::Params,
+    occupancy: &OccupancyGrid,
+    extra: &[(&str, String)],
+) -> Result<(), String> {
+    let mut w = field.writer(params, occupancy).map_err(|e| format!("{}: {e}", path.display()))?;
     for (k, v) in extra {
         w.meta(k, v);
     }
     w.write(path)
+}
+
+/// Saves a plain NeRF (`kind = "nerf"`) with extra informational metadata.
+pub fn save_nerf(path: &Path, nerf: &Nerf, extra: &[(&str, String)]) -> Result<(), String> {
+    save_model(path, &nerf.field, &nerf.params, &nerf.occupancy, extra)
 }
 
 /// Loads a plain NeRF from model-file bytes.
@@ -329,25 +380,7 @@ fn mix_name(kind: MixKind) -> &'static str {
 /// residual's encoding; then there is no `mixnet.grid.params`). The background is embedded, so
 /// the file is all a robot needs.
 pub fn save_residual(path: &Path, m: &ResidualModel, extra: &[(&str, String)]) -> Result<(), String> {
-    let at = |e: String| format!("{}: {e}", path.display());
-    let mut w = ModelWriter::new("residual");
-    w.nerf("background.", &m.field.background).map_err(at)?;
-    w.nerf_parts("residual.", m.field.residual(), &m.params.residual, &m.occupancy).map_err(at)?;
-    w.meta("mix", mix_name(m.field.kind()));
-    let mixnet = m.field.mixnet();
-    match mixnet.grid() {
-        Some(grid) => {
-            w.meta("mixnet_grid", &grid_json(grid.config()).to_string());
-            let entries = m.params.mixnet.grid.master.len() / 2;
-            w.tensor("mixnet.grid.params", vec![entries, 2], &m.params.mixnet.grid.master).map_err(at)?;
-        }
-        None => w.meta("mixnet_grid", "\"shared\""),
-    }
-    w.mlp("mixnet", m.params.mixnet.mlp.weights(), mixnet.mlp().layers()).map_err(at)?;
-    for (k, v) in extra {
-        w.meta(k, v);
-    }
-    w.write(path)
+    save_model(path, &m.field, &m.params, &m.occupancy, extra)
 }
 
 /// Loads a model of either kind from model-file bytes.

@@ -4,9 +4,16 @@
 //! [`TrainConfig::occupancy_interval`] steps the occupancy grid is refreshed through the
 //! field's density-only path.
 //!
+//! A run is a [`Trainer`] stepped by its caller, who decides between steps what to log,
+//! evaluate or checkpoint; [`train_model`] is the plain loop. A step whose loss or gradients are
+//! not finite is skipped (nothing changes); too many in a row, or too many steps in which no
+//! ray reaches an occupied cell, end the run with a [`TrainError`].
+//!
 //! Determinism: ray sampling draws from `Rng::stream(seed, step)`, marching and compositing
 //! are per ray in ray order, the field reduces in fixed slots — same seed, same bits on any
-//! thread count.
+//! thread count. All that carries over between steps is the [`TrainState`] (parameters,
+//! occupancy grid, Adam moments, step), so a run resumed from a saved state continues
+//! bit-exactly.
 
 use crate::field::residual::{ResidualConfig, ResidualField, ResidualModel};
 pub use crate::field::Nerf;
@@ -121,6 +128,8 @@ pub struct StepStats {
     pub seconds: f64,
     /// Fraction of occupied cells.
     pub occupancy: f64,
+    /// Steps skipped so far for a non-finite loss or gradient.
+    pub skipped: u32,
 }
 
 /// Scales each sample's gradients by `min(1, (t / distance)²)` ([`TrainConfig::near_gradient_distance`]).
@@ -247,12 +256,12 @@ pub fn train_nerf(
     cfg: &TrainConfig,
     log_every: u32,
     log: impl FnMut(StepStats),
-) -> Nerf {
+) -> Result<Nerf, TrainError> {
     let aabb = field_config.aabb;
     let field = NerfField::new(field_config);
     let mut log = log;
-    let (params, occupancy) = train_model(isa, &field, aabb, views, cfg, log_every, |s, _, _| log(s));
-    Nerf { field, params, occupancy }
+    let (params, occupancy) = train_model(isa, &field, aabb, views, cfg, log_every, |s, _, _| log(s))?;
+    Ok(Nerf { field, params, occupancy })
 }
 
 /// Trains a residual model (residual NeRF + Mixnet over the frozen `background`) on the scene
@@ -265,50 +274,202 @@ pub fn train_residual(
     cfg: &TrainConfig,
     log_every: u32,
     log: impl FnMut(StepStats),
-) -> ResidualModel {
+) -> Result<ResidualModel, TrainError> {
     let aabb = config.residual.aabb;
     let field = ResidualField::new(background, config);
     let mut log = log;
-    let (params, occupancy) = train_model(isa, &field, aabb, views, cfg, log_every, |s, _, _| log(s));
-    ResidualModel { field, params, occupancy }
+    let (params, occupancy) = train_model(isa, &field, aabb, views, cfg, log_every, |s, _, _| log(s))?;
+    Ok(ResidualModel { field, params, occupancy })
 }
 
-/// Trains `model` on `views` inside `aabb` from fresh parameters (seeded by `cfg.seed`);
-/// returns the parameters and the occupancy grid. `observe` receives the stats, parameters and
-/// occupancy grid after every `log_every`-th step and the last (0: never); the training clock
-/// ([`StepStats::seconds`]) stops while it runs, so an observer that evaluates the model (the
-/// speed curves of `rnerf compare`) does not count as training time.
-pub fn train_model<M: Model>(
+/// Consecutive skipped (non-finite) steps after which training gives up
+/// ([`TrainError::NonFinite`]); the parameters are then those of the last good step.
+pub const MAX_BAD_STEPS_IN_A_ROW: u32 = 16;
+
+/// Consecutive steps in which no ray reached an occupied cell after which training gives up
+/// ([`TrainError::NoLiveSamples`]): more than one occupancy refresh, so a grid that empties
+/// for a moment can recover.
+pub const MAX_EMPTY_STEPS_IN_A_ROW: u32 = 64;
+
+/// Why training stopped before its last step. The trainer's state stays that of the last good
+/// step (skipped steps change nothing), so a caller can still save it.
+#[derive(Clone, Debug, PartialEq)]
+pub enum TrainError {
+    /// [`MAX_BAD_STEPS_IN_A_ROW`] steps in a row had a non-finite loss or gradient.
+    NonFinite {
+        /// The last step tried (0-based).
+        step: u32,
+        /// Steps skipped in the whole run.
+        skipped: u32,
+    },
+    /// [`MAX_EMPTY_STEPS_IN_A_ROW`] steps in a row marched no sample: the rays miss the
+    /// occupied part of the scene box.
+    NoLiveSamples {
+        /// The last step tried (0-based).
+        step: u32,
+        /// The scene box.
+        aabb: Aabb,
+        /// Fraction of occupied cells.
+        occupancy: f64,
+    },
+}
+
+impl std::fmt::Display for TrainError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            TrainError::NonFinite { step, skipped } => write!(
+                f,
+                "training diverged: {MAX_BAD_STEPS_IN_A_ROW} steps in a row up to step {} had a non-finite loss or \
+                 gradient ({skipped} skipped in all); the parameters are those of the last good step \
+                 (try a lower --lr, or check the images for NaN values)",
+                step + 1
+            ),
+            TrainError::NoLiveSamples { step, aabb, occupancy } => write!(
+                f,
+                "no live samples: for {MAX_EMPTY_STEPS_IN_A_ROW} steps up to step {} no training ray crossed an \
+                 occupied cell ({:.1}% of the grid occupied) — check that the scene box {:?}..{:?} ('aabb') \
+                 holds what the cameras look at",
+                step + 1,
+                occupancy * 100.0,
+                aabb.min.to_array(),
+                aabb.max.to_array()
+            ),
+        }
+    }
+}
+
+impl std::error::Error for TrainError {}
+
+/// Everything a training run carries from one step to the next: with the same views and
+/// [`TrainConfig`], a run continued from a saved state produces the same bits as one never
+/// stopped (sampling draws from per-step streams, never from state).
+#[derive(Clone)]
+pub struct TrainState<P> {
+    /// Steps completed (the next step's index).
+    pub step: u32,
+    /// The trained parameters.
+    pub params: P,
+    /// The occupancy grid.
+    pub occupancy: OccupancyGrid,
+    /// One optimiser per parameter group, in [`Model::groups`] order.
+    pub adams: Vec<Adam>,
+    /// Steps skipped for non-finite values so far.
+    pub skipped: u32,
+    /// Seconds spent training so far (informational; not part of the bits).
+    pub seconds: f64,
+}
+
+/// A training run, one [`Trainer::step`] at a time: the caller decides between steps whether
+/// to log, evaluate, checkpoint ([`Trainer::state`]) or stop.
+pub struct Trainer<'a, M: Model> {
     isa: Isa,
-    model: &M,
-    aabb: Aabb,
-    views: &[View],
-    cfg: &TrainConfig,
-    log_every: u32,
-    mut observe: impl FnMut(StepStats, &M::Params, &OccupancyGrid),
-) -> (M::Params, OccupancyGrid) {
-    assert!(!views.is_empty(), "train: no training views");
-    // Denormals are ~100× slower on x86; every thread of the pool flushes them while training.
-    let modes: Vec<u64> = rayon::broadcast(|_| crate::simd::fpmode::flush_denormals());
-    let main_mode = crate::simd::fpmode::flush_denormals();
-    let mut rng = Rng::new(cfg.seed);
-    let mut params = model.init_params(&mut rng);
-    let mut occupancy = OccupancyGrid::new(aabb, cfg.occupancy.clone());
-    let mut grads = model.zero_grads();
-    let mut adams: Vec<Adam> = model
-        .groups(&mut params, &grads)
-        .iter()
-        .map(|g| Adam::new(g.master.len(), AdamConfig { l2: g.l2, ..Default::default() }))
-        .collect();
-    model.after_step(&mut params);
-    let mut buf = StepBuffers::default();
-    let mut ctx = M::Context::default();
-    let start = Instant::now();
-    let mut observing = std::time::Duration::ZERO;
-    for step in 0..cfg.steps {
+    model: &'a M,
+    views: &'a [View],
+    cfg: &'a TrainConfig,
+    state: TrainState<M::Params>,
+    grads: M::Grads,
+    buf: StepBuffers,
+    ctx: M::Context,
+    bad_in_a_row: u32,
+    empty_in_a_row: u32,
+}
+
+impl<'a, M: Model> Trainer<'a, M> {
+    /// A fresh run: parameters initialised from `cfg.seed`, every occupancy cell occupied.
+    pub fn new(isa: Isa, model: &'a M, aabb: Aabb, views: &'a [View], cfg: &'a TrainConfig) -> Self {
+        assert!(!views.is_empty(), "train: no training views");
+        let mut rng = Rng::new(cfg.seed);
+        let mut params = model.init_params(&mut rng);
+        let grads = model.zero_grads();
+        let adams = model
+            .groups(&mut params, &grads)
+            .iter()
+            .map(|g| Adam::new(g.master.len(), AdamConfig { l2: g.l2, ..Default::default() }))
+            .collect();
+        model.after_step(&mut params);
+        let occupancy = OccupancyGrid::new(aabb, cfg.occupancy.clone());
+        let state = TrainState { step: 0, params, occupancy, adams, skipped: 0, seconds: 0.0 };
+        Self::from_state(isa, model, views, cfg, state).expect("a fresh state fits its model")
+    }
+
+    /// Continues a run from `state` (a checkpoint); refuses a state whose optimisers do not
+    /// fit the model's parameter groups.
+    pub fn from_state(
+        isa: Isa,
+        model: &'a M,
+        views: &'a [View],
+        cfg: &'a TrainConfig,
+        mut state: TrainState<M::Params>,
+    ) -> Result<Self, String> {
+        if views.is_empty() {
+            return Err("train: no training views".into());
+        }
+        let grads = model.zero_grads();
+        let sizes: Vec<usize> = model.groups(&mut state.params, &grads).iter().map(|g| g.master.len()).collect();
+        model.after_step(&mut state.params); // groups() lends the weights out mutably
+        let saved: Vec<usize> = state.adams.iter().map(|a| a.moments().0.len()).collect();
+        if sizes != saved {
+            return Err(format!("optimiser state sizes {saved:?} do not fit the model's parameter groups {sizes:?}"));
+        }
+        if state.step > cfg.steps {
+            return Err(format!("state is at step {}, past the run's {} steps", state.step, cfg.steps));
+        }
+        let (buf, ctx) = (StepBuffers::default(), M::Context::default());
+        Ok(Trainer { isa, model, views, cfg, state, grads, buf, ctx, bad_in_a_row: 0, empty_in_a_row: 0 })
+    }
+
+    /// The run's settings.
+    pub fn config(&self) -> &'a TrainConfig {
+        self.cfg
+    }
+
+    /// The training views.
+    pub fn views(&self) -> &'a [View] {
+        self.views
+    }
+
+    /// Whether every step of the run is done.
+    pub fn is_done(&self) -> bool {
+        self.state.step >= self.cfg.steps
+    }
+
+    /// The run's state after the last step.
+    pub fn state(&self) -> &TrainState<M::Params> {
+        &self.state
+    }
+
+    /// Ends the run, returning its state.
+    pub fn into_state(self) -> TrainState<M::Params> {
+        self.state
+    }
+
+    /// Runs the next step. A step whose loss or gradients are not finite changes nothing and
+    /// is counted ([`TrainState::skipped`]); too many in a row, or too many steps without a
+    /// live sample, end the run with an error (the state stays the last good one).
+    pub fn step(&mut self) -> Result<StepStats, TrainError> {
+        assert!(!self.is_done(), "train: step past the end of the run");
+        let start = Instant::now();
+        // Denormals are ~100× slower on x86; every thread of the pool flushes them while training.
+        let modes: Vec<u64> = rayon::broadcast(|_| crate::simd::fpmode::flush_denormals());
+        let main_mode = crate::simd::fpmode::flush_denormals();
+        let result = self.step_inner();
+        rayon::broadcast(|ctx| crate::simd::fpmode::restore(modes[ctx.index()]));
+        crate::simd::fpmode::restore(main_mode);
+        self.state.seconds += start.elapsed().as_secs_f64();
+        let mut stats = result?;
+        stats.seconds = self.state.seconds;
+        Ok(stats)
+    }
+
+    fn step_inner(&mut self) -> Result<StepStats, TrainError> {
+        let (isa, model, views, cfg) = (self.isa, self.model, self.views, self.cfg);
+        let Trainer { state, grads, buf, ctx, bad_in_a_row, empty_in_a_row, .. } = self;
+        let step = state.step;
+        let params = &mut state.params;
+        let occupancy = &mut state.occupancy;
         if step % cfg.occupancy_interval.max(1) == 0 {
             let mut orng = Rng::stream(cfg.seed ^ 0x0CC, step as u64);
-            occupancy.update(step, &mut orng, |pts, sigma| model.density(isa, &params, pts, sigma, &mut ctx));
+            occupancy.update(step, &mut orng, |pts, sigma| model.density(isa, params, pts, sigma, ctx));
         }
         // 1. Rays: uniform over all pixels of all views.
         let mut srng = Rng::stream(cfg.seed, step as u64);
@@ -329,10 +490,14 @@ pub fn train_model<M: Model>(
         // 2. March; drop the samples behind each ray's opaque point (T < 1e-4): a density-only
         //    pass finds them; compositing ignores them anyway, so the result is unchanged and
         //    the full forward/backward runs on the samples that matter (nerfacc's early stop).
-        march_rays(&occupancy, &buf.rays, &mut buf.marched, &mut buf.marched_pos, &mut buf.marched_dirs);
+        march_rays(occupancy, &buf.rays, &mut buf.marched, &mut buf.marched_pos, &mut buf.marched_dirs);
         let marched = buf.marched.len();
+        *empty_in_a_row = if marched == 0 { *empty_in_a_row + 1 } else { 0 };
+        if *empty_in_a_row >= MAX_EMPTY_STEPS_IN_A_ROW {
+            return Err(TrainError::NoLiveSamples { step, aabb: *occupancy.aabb(), occupancy: occupancy.occupancy() });
+        }
         buf.sigma.resize(marched, 0.0);
-        model.density(isa, &params, &buf.marched_pos, &mut buf.sigma, &mut ctx);
+        model.density(isa, params, &buf.marched_pos, &mut buf.sigma, ctx);
         keep_until_opaque(
             &buf.marched,
             &buf.marched_pos,
@@ -346,91 +511,136 @@ pub fn train_model<M: Model>(
         let n = buf.positions.len();
         buf.sigma.resize(n, 0.0);
         buf.rgb.resize(n, [0.0; 3]);
-        model.forward(isa, &params, &buf.positions, &buf.dirs, &mut buf.sigma, &mut buf.rgb, &mut ctx);
-        // 4. Composite, loss, and back through compositing. Rays are processed in SLOTS fixed
-        //    groups whose samples are contiguous, each group writing its own slices of the
-        //    step buffers (no per-ray allocation).
-        buf.d_sigma.resize(n, 0.0);
-        buf.d_rgb.resize(n, [0.0; 3]);
-        let scale = 2.0 / (3 * cfg.rays_per_step) as f32;
-        let (samples, sigma, rgb, targets) = (&buf.samples, &buf.sigma, &buf.rgb, &buf.targets);
-        let backgrounds = &buf.backgrounds;
-        let groups = ray_groups(&samples.rays);
-        let d_sigma_parts = split_at_bounds(&mut buf.d_sigma, &groups);
-        let d_rgb_parts = split_at_bounds(&mut buf.d_rgb, &groups);
-        let losses: Vec<f64> = groups
-            .par_iter()
-            .zip(d_sigma_parts)
-            .zip(d_rgb_parts)
-            .map(|((g, d_s), d_c)| {
-                let mut loss = 0.0f64;
-                let mut scratch = Vec::new();
-                let base = g.samples.start;
-                for ray in g.rays.clone() {
-                    let (s0, cnt) = samples.rays[ray];
-                    let r = s0 as usize..(s0 + cnt) as usize;
-                    let local = r.start - base..r.end - base;
-                    let c = composite_ray(
+        model.forward(isa, params, &buf.positions, &buf.dirs, &mut buf.sigma, &mut buf.rgb, ctx);
+        // 4. Composite, loss, and back through compositing.
+        let loss = composite_and_loss_backward(cfg, buf);
+        // 5. Backward through the model; a non-finite loss or gradient skips the step (the
+        //    parameters, moments and step count of Adam stay as they were).
+        model.backward(isa, params, ctx, &buf.d_sigma, &buf.d_rgb, grads);
+        let finite = loss.is_finite() && model.groups(params, grads).iter().all(|g| all_finite(g.grad));
+        if finite {
+            // 6. Adam on every parameter group.
+            let lr = cfg.schedule.lr(step);
+            for (adam, g) in state.adams.iter_mut().zip(model.groups(params, grads)) {
+                adam.step(isa, lr, g.master, g.grad, g.mirror);
+            }
+            model.after_step(params);
+            *bad_in_a_row = 0;
+        } else {
+            model.after_step(params); // groups() lent the (unchanged) weights out mutably
+            state.skipped += 1;
+            *bad_in_a_row += 1;
+        }
+        state.step += 1;
+        if *bad_in_a_row >= MAX_BAD_STEPS_IN_A_ROW {
+            return Err(TrainError::NonFinite { step, skipped: state.skipped });
+        }
+        Ok(StepStats {
+            step,
+            loss: (loss / (3 * cfg.rays_per_step) as f64) as f32,
+            samples_per_ray: n as f32 / cfg.rays_per_step as f32,
+            marched_per_ray: marched as f32 / cfg.rays_per_step as f32,
+            seconds: 0.0,
+            occupancy: occupancy.occupancy(),
+            skipped: state.skipped,
+        })
+    }
+}
+
+/// Whether every value is finite (a branch-free pass over chunks, on the rayon pool).
+fn all_finite(x: &[f32]) -> bool {
+    const EXP: u32 = 0x7f80_0000;
+    x.par_chunks(1 << 16).all(|c| c.iter().fold(0u32, |acc, v| acc | ((v.to_bits() & EXP == EXP) as u32)) == 0)
+}
+
+/// Composites the step's rays (Eq. 2), takes the loss (Eq. 4) and the regularisers, and fills
+/// `buf.d_sigma` / `buf.d_rgb`; returns the summed squared error. Rays are processed in
+/// [`SLOTS`] fixed groups whose samples are contiguous, each group writing its own slices of
+/// the step buffers (no per-ray allocation; the same sums on any thread count).
+fn composite_and_loss_backward(cfg: &TrainConfig, buf: &mut StepBuffers) -> f64 {
+    let n = buf.positions.len();
+    buf.d_sigma.resize(n, 0.0);
+    buf.d_rgb.resize(n, [0.0; 3]);
+    let scale = 2.0 / (3 * cfg.rays_per_step) as f32;
+    let (samples, sigma, rgb, targets) = (&buf.samples, &buf.sigma, &buf.rgb, &buf.targets);
+    let backgrounds = &buf.backgrounds;
+    let groups = ray_groups(&samples.rays);
+    let d_sigma_parts = split_at_bounds(&mut buf.d_sigma, &groups);
+    let d_rgb_parts = split_at_bounds(&mut buf.d_rgb, &groups);
+    let losses: Vec<f64> = groups
+        .par_iter()
+        .zip(d_sigma_parts)
+        .zip(d_rgb_parts)
+        .map(|((g, d_s), d_c)| {
+            let mut loss = 0.0f64;
+            let mut scratch = Vec::new();
+            let base = g.samples.start;
+            for ray in g.rays.clone() {
+                let (s0, cnt) = samples.rays[ray];
+                let r = s0 as usize..(s0 + cnt) as usize;
+                let local = r.start - base..r.end - base;
+                let c = composite_ray(
+                    &sigma[r.clone()],
+                    &samples.delta[r.clone()],
+                    &samples.t[r.clone()],
+                    &rgb[r.clone()],
+                    backgrounds[ray],
+                );
+                let err: [f32; 3] = std::array::from_fn(|k| c.rgb[k] - targets[ray][k]);
+                loss += err.iter().map(|e| (e * e) as f64).sum::<f64>();
+                composite_ray_backward(
+                    &sigma[r.clone()],
+                    &samples.delta[r.clone()],
+                    &rgb[r.clone()],
+                    &c,
+                    err.map(|e| e * scale),
+                    &mut d_s[local.clone()],
+                    &mut d_c[local.clone()],
+                );
+                if cfg.distortion > 0.0 {
+                    distortion_backward(
                         &sigma[r.clone()],
                         &samples.delta[r.clone()],
                         &samples.t[r.clone()],
-                        &rgb[r.clone()],
-                        backgrounds[ray],
-                    );
-                    let err: [f32; 3] = std::array::from_fn(|k| c.rgb[k] - targets[ray][k]);
-                    loss += err.iter().map(|e| (e * e) as f64).sum::<f64>();
-                    composite_ray_backward(
-                        &sigma[r.clone()],
-                        &samples.delta[r.clone()],
-                        &rgb[r.clone()],
-                        &c,
-                        err.map(|e| e * scale),
+                        cfg.distortion / cfg.rays_per_step as f32,
                         &mut d_s[local.clone()],
-                        &mut d_c[local.clone()],
+                        &mut scratch,
                     );
-                    if cfg.distortion > 0.0 {
-                        distortion_backward(
-                            &sigma[r.clone()],
-                            &samples.delta[r.clone()],
-                            &samples.t[r.clone()],
-                            cfg.distortion / cfg.rays_per_step as f32,
-                            &mut d_s[local.clone()],
-                            &mut scratch,
-                        );
-                    }
-                    if cfg.near_gradient_distance > 0.0 {
-                        let (ds, dc) = (&mut d_s[local.clone()], &mut d_c[local]);
-                        scale_near_gradients(&samples.t[r], cfg.near_gradient_distance, ds, dc);
-                    }
                 }
-                loss
-            })
-            .collect();
-        let loss: f64 = losses.iter().sum();
-        // 5. Backward through the model, 6. Adam on every parameter group.
-        model.backward(isa, &params, &mut ctx, &buf.d_sigma, &buf.d_rgb, &mut grads);
-        let lr = cfg.schedule.lr(step);
-        for (adam, g) in adams.iter_mut().zip(model.groups(&mut params, &grads)) {
-            adam.step(isa, lr, g.master, g.grad, g.mirror);
-        }
-        model.after_step(&mut params);
-        if log_every > 0 && ((step + 1) % log_every == 0 || step + 1 == cfg.steps) {
-            let stats = StepStats {
-                step,
-                loss: (loss / (3 * cfg.rays_per_step) as f64) as f32,
-                samples_per_ray: n as f32 / cfg.rays_per_step as f32,
-                marched_per_ray: marched as f32 / cfg.rays_per_step as f32,
-                seconds: (start.elapsed() - observing).as_secs_f64(),
-                occupancy: occupancy.occupancy(),
-            };
-            let t = Instant::now();
-            observe(stats, &params, &occupancy);
-            observing += t.elapsed();
+                if cfg.near_gradient_distance > 0.0 {
+                    let (ds, dc) = (&mut d_s[local.clone()], &mut d_c[local]);
+                    scale_near_gradients(&samples.t[r], cfg.near_gradient_distance, ds, dc);
+                }
+            }
+            loss
+        })
+        .collect();
+    losses.iter().sum()
+}
+
+/// Trains `model` on `views` inside `aabb` from fresh parameters (seeded by `cfg.seed`);
+/// returns the parameters and the occupancy grid. `observe` receives the stats, parameters and
+/// occupancy grid after every `log_every`-th step and the last (0: never); the training clock
+/// ([`StepStats::seconds`]) stops while it runs, so an observer that evaluates the model (the
+/// speed curves of `rnerf compare`) does not count as training time.
+pub fn train_model<M: Model>(
+    isa: Isa,
+    model: &M,
+    aabb: Aabb,
+    views: &[View],
+    cfg: &TrainConfig,
+    log_every: u32,
+    mut observe: impl FnMut(StepStats, &M::Params, &OccupancyGrid),
+) -> Result<(M::Params, OccupancyGrid), TrainError> {
+    let mut trainer = Trainer::new(isa, model, aabb, views, cfg);
+    while !trainer.is_done() {
+        let stats = trainer.step()?;
+        if log_every > 0 && ((stats.step + 1) % log_every == 0 || stats.step + 1 == cfg.steps) {
+            observe(stats, &trainer.state().params, &trainer.state().occupancy);
         }
     }
-    rayon::broadcast(|ctx| crate::simd::fpmode::restore(modes[ctx.index()]));
-    crate::simd::fpmode::restore(main_mode);
-    (params, occupancy)
+    let state = trainer.into_state();
+    Ok((state.params, state.occupancy))
 }
 
 #[cfg(test)]

@@ -1,0 +1,242 @@
+//! Training checkpoints: a model file (loadable and renderable like any other) that also holds
+//! what [`TrainState`] carries between steps, so `rnerf train --resume` continues bit-exactly.
+//!
+//! Beside the model's tensors ([`super::model`]):
+//! - `train.adam.{g}.m`, `train.adam.{g}.v` f32 `[n]`: Adam's moments of parameter group `g`
+//!   (in [`Model::groups`] order, padded MLP layouts included);
+//! - metadata `checkpoint`: `{"step", "skipped", "seconds", "adam_steps": [..], "fingerprint",
+//!   "train": {the TrainConfig}}`. `fingerprint` hashes the training views (poses, intrinsics,
+//!   pixels): a checkpoint resumes only on the data it was trained on.
+
+use super::model::{read_model_bytes, ModelFile, ModelReader};
+use super::{model_from_bytes, LoadedModel};
+use crate::render::{OccupancyConfig, OccupancyGrid};
+use crate::train::model::Model;
+use crate::train::trainer::{TrainConfig, TrainState, View};
+use crate::train::{Adam, AdamConfig, LrSchedule};
+use serde_json::{json, Value};
+use std::path::Path;
+
+/// What a checkpoint holds beyond the model: everything to rebuild the [`TrainState`].
+#[derive(Clone, Debug)]
+pub struct Checkpoint {
+    /// Steps completed.
+    pub step: u32,
+    /// Steps skipped for non-finite values so far.
+    pub skipped: u32,
+    /// Training seconds so far.
+    pub seconds: f64,
+    /// The run's settings.
+    pub config: TrainConfig,
+    /// [`views_fingerprint`] of the training views.
+    pub fingerprint: u64,
+    /// Adam's first and second moments and step count per parameter group.
+    pub moments: Vec<(Vec<f32>, Vec<f32>, u32)>,
+}
+
+impl Checkpoint {
+    /// The training state of `model` with `params` and `occupancy` (as loaded from the same
+    /// file); refuses moments that do not fit the model's parameter groups.
+    pub fn into_state<M: Model>(
+        self,
+        model: &M,
+        mut params: M::Params,
+        occupancy: OccupancyGrid,
+    ) -> Result<TrainState<M::Params>, String> {
+        let grads = model.zero_grads();
+        let groups = model.groups(&mut params, &grads);
+        if groups.len() != self.moments.len() {
+            return Err(format!("{} optimiser states for {} parameter groups", self.moments.len(), groups.len()));
+        }
+        let mut adams = Vec::with_capacity(groups.len());
+        for (g, (i, (m, v, t))) in groups.iter().zip(self.moments.into_iter().enumerate()) {
+            if m.len() != g.master.len() || v.len() != g.master.len() {
+                return Err(format!(
+                    "tensor 'train.adam.{i}.m' has {} values, the model needs {}",
+                    m.len(),
+                    g.master.len()
+                ));
+            }
+            let mut adam = Adam::new(g.master.len(), AdamConfig { l2: g.l2, ..Default::default() });
+            adam.restore(m, v, t);
+            adams.push(adam);
+        }
+        drop(groups);
+        model.after_step(&mut params); // groups() lent the weights out mutably
+        Ok(TrainState { step: self.step, params, occupancy, adams, skipped: self.skipped, seconds: self.seconds })
+    }
+}
+
+/// FNV-1a over the views' intrinsics, poses and pixels: equal for the same training data.
+pub fn views_fingerprint(views: &[View]) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut eat = |bytes: &[u8]| {
+        for &b in bytes {
+            h = (h ^ b as u64).wrapping_mul(0x0100_0000_01b3);
+        }
+    };
+    for v in views {
+        let k = &v.intrinsics;
+        eat(&k.width.to_le_bytes());
+        eat(&k.height.to_le_bytes());
+        for x in [k.fx, k.fy, k.cx, k.cy] {
+            eat(&x.to_le_bytes());
+        }
+        for x in v.pose.rotation.to_cols_array().iter().chain(&v.pose.translation.to_array()) {
+            eat(&x.to_le_bytes());
+        }
+        eat(bytemuck::cast_slice(&v.rgb));
+    }
+    h
+}
+
+/// Writes `field`'s model file plus the training state, atomically; `extra` is informational
+/// metadata. Non-finite values are refused (nothing is written).
+pub fn save_checkpoint<M: ModelFile>(
+    path: &Path,
+    field: &M,
+    state: &TrainState<M::Params>,
+    config: &TrainConfig,
+    fingerprint: u64,
+    extra: &[(&str, String)],
+) -> Result<(), String> {
+    let at = |e: String| format!("{}: {e}", path.display());
+    let mut w = field.writer(&state.params, &state.occupancy).map_err(at)?;
+    for (k, v) in extra {
+        w.meta(k, v);
+    }
+    for (g, adam) in state.adams.iter().enumerate() {
+        let (m, v) = adam.moments();
+        w.tensor(&format!("train.adam.{g}.m"), vec![m.len()], m).map_err(at)?;
+        w.tensor(&format!("train.adam.{g}.v"), vec![v.len()], v).map_err(at)?;
+    }
+    let meta = json!({
+        "step": state.step,
+        "skipped": state.skipped,
+        "seconds": state.seconds,
+        "adam_steps": state.adams.iter().map(Adam::steps).collect::<Vec<_>>(),
+        "fingerprint": format!("{fingerprint:016x}"),
+        "train": train_config_json(config),
+    });
+    w.meta("checkpoint", &meta.to_string());
+    w.write(path)
+}
+
+/// Loads a checkpoint: the model and its training state. A finished model (no training
+/// state) is refused.
+pub fn load_checkpoint(path: &Path) -> Result<(LoadedModel, Checkpoint), String> {
+    let bytes = read_model_bytes(path)?;
+    let at = |e: String| format!("{}: {e}", path.display());
+    let model = model_from_bytes(&bytes).map_err(at)?;
+    let r = ModelReader::parse(&bytes).map_err(at)?;
+    let occupancy = match &model {
+        LoadedModel::Nerf(n) => n.occupancy.config().clone(),
+        LoadedModel::Residual(m) => m.occupancy.config().clone(),
+    };
+    let checkpoint = read_checkpoint(&r, occupancy).map_err(at)?;
+    Ok((model, checkpoint))
+}
+
+fn read_checkpoint(r: &ModelReader, occupancy: OccupancyConfig) -> Result<Checkpoint, String> {
+    let text =
+        r.meta("checkpoint").map_err(|_| "not a checkpoint (a finished model: no training state)".to_string())?;
+    let v: Value = serde_json::from_str(text).map_err(|e| format!("metadata 'checkpoint' is not JSON: {e}"))?;
+    let field = |k: &str| format!("metadata 'checkpoint': '{k}' missing or out of range");
+    let u32_of = |k: &str| v.get(k).and_then(Value::as_u64).and_then(|x| u32::try_from(x).ok()).ok_or_else(|| field(k));
+    let step = u32_of("step")?;
+    let skipped = u32_of("skipped")?;
+    let seconds = v.get("seconds").and_then(Value::as_f64).filter(|s| s.is_finite()).ok_or_else(|| field("seconds"))?;
+    let fingerprint = v
+        .get("fingerprint")
+        .and_then(Value::as_str)
+        .and_then(|s| u64::from_str_radix(s, 16).ok())
+        .ok_or_else(|| field("fingerprint"))?;
+    let config = parse_train_config(v.get("train").ok_or_else(|| field("train"))?, occupancy)
+        .map_err(|e| format!("metadata 'checkpoint': 'train': {e}"))?;
+    if step > config.steps {
+        return Err(format!("metadata 'checkpoint': step {step} is past the run's {} steps", config.steps));
+    }
+    let adam_steps = v.get("adam_steps").and_then(Value::as_array).ok_or_else(|| field("adam_steps"))?;
+    let mut moments = Vec::with_capacity(adam_steps.len());
+    for (g, t) in adam_steps.iter().enumerate() {
+        let t = t.as_u64().and_then(|t| u32::try_from(t).ok()).ok_or_else(|| field("adam_steps"))?;
+        let m = flat_tensor(r, &format!("train.adam.{g}.m"))?;
+        let v = flat_tensor(r, &format!("train.adam.{g}.v"))?;
+        if let Some(i) = v.iter().position(|&x| x < 0.0) {
+            return Err(format!("tensor 'train.adam.{g}.v' holds a negative value at {i}"));
+        }
+        moments.push((m, v, t));
+    }
+    Ok(Checkpoint { step, skipped, seconds, config, fingerprint, moments })
+}
+
+/// A one-dimensional f32 tensor of any length.
+fn flat_tensor(r: &ModelReader, name: &str) -> Result<Vec<f32>, String> {
+    let n = r.shape(name)?;
+    match n.as_slice() {
+        [n] => r.tensor(name, &[*n]),
+        other => Err(format!("tensor '{name}' has shape {other:?}, expected one dimension")),
+    }
+}
+
+/// The settings of a run as JSON (exact: every f32 survives the round trip).
+pub fn train_config_json(c: &TrainConfig) -> Value {
+    let s = &c.schedule;
+    json!({
+        "steps": c.steps, "rays_per_step": c.rays_per_step,
+        "schedule": {
+            "base": s.base, "warmup_steps": s.warmup_steps, "decay_start": s.decay_start,
+            "decay_interval": s.decay_interval, "decay_factor": s.decay_factor,
+        },
+        "occupancy_interval": c.occupancy_interval,
+        "background": c.background, "random_background": c.random_background,
+        "seed": c.seed, "distortion": c.distortion, "near_gradient_distance": c.near_gradient_distance,
+    })
+}
+
+/// Parses [`train_config_json`]; the occupancy settings come from the model.
+pub fn parse_train_config(v: &Value, occupancy: OccupancyConfig) -> Result<TrainConfig, String> {
+    let uint = |v: &Value, k: &str, lo: u64, hi: u64| -> Result<u64, String> {
+        v.get(k)
+            .and_then(Value::as_u64)
+            .filter(|x| (lo..=hi).contains(x))
+            .ok_or(format!("'{k}' missing or not in {lo}..={hi}"))
+    };
+    let real = |v: &Value, k: &str, lo: f64, hi: f64| -> Result<f32, String> {
+        v.get(k)
+            .and_then(Value::as_f64)
+            .filter(|x| (lo..=hi).contains(x))
+            .map(|x| x as f32)
+            .ok_or(format!("'{k}' missing or not in [{lo}, {hi}]"))
+    };
+    let s = v.get("schedule").ok_or("'schedule' missing")?;
+    let schedule = LrSchedule {
+        base: real(s, "base", 0.0, 1.0)?,
+        warmup_steps: uint(s, "warmup_steps", 0, u32::MAX as u64)? as u32,
+        decay_start: uint(s, "decay_start", 0, u32::MAX as u64)? as u32,
+        decay_interval: uint(s, "decay_interval", 1, u32::MAX as u64)? as u32,
+        decay_factor: real(s, "decay_factor", 0.0, 1.0)?,
+    };
+    let bg =
+        v.get("background").and_then(Value::as_array).filter(|a| a.len() == 3).ok_or("'background' not 3 numbers")?;
+    let background: Vec<f32> = bg
+        .iter()
+        .map(|x| x.as_f64().filter(|x| (0.0..=1.0).contains(x)).map(|x| x as f32))
+        .collect::<Option<_>>()
+        .ok_or("'background' not in [0, 1]")?;
+    Ok(TrainConfig {
+        steps: uint(v, "steps", 1, 100_000_000)? as u32,
+        rays_per_step: uint(v, "rays_per_step", 1, 1 << 24)? as usize,
+        schedule,
+        occupancy_interval: uint(v, "occupancy_interval", 1, u32::MAX as u64)? as u32,
+        occupancy,
+        background: [background[0], background[1], background[2]],
+        random_background: v
+            .get("random_background")
+            .and_then(Value::as_bool)
+            .ok_or("'random_background' not a bool")?,
+        seed: uint(v, "seed", 0, u64::MAX)?,
+        distortion: real(v, "distortion", 0.0, 1e6)?,
+        near_gradient_distance: real(v, "near_gradient_distance", 0.0, 1e6)?,
+    })
+}

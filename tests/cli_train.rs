@@ -1,0 +1,136 @@
+//! `rnerf train` as a robot runs it: SIGINT finishes the step, writes a checkpoint and exits
+//! 130 without touching `--out`; `--resume` then ends with the same tensors as a run never
+//! interrupted, and removes the checkpoint. A checkpoint resumes only on its own data.
+
+use residual_nerf::app::checkpoint_path;
+use residual_nerf::data::{workspace, Dataset, LoadOptions};
+use residual_nerf::encoding::HashGridConfig;
+use residual_nerf::field::{NerfConfig, NerfField};
+use residual_nerf::io::{save_checkpoint, views_fingerprint};
+use residual_nerf::simd::Isa;
+use residual_nerf::train::trainer::{TrainConfig, Trainer};
+use safetensors::SafeTensors;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("cli_train").join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn rnerf(args: &[&str]) -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_rnerf"));
+    c.args(args).stdout(Stdio::null()).stderr(Stdio::piped());
+    c
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// The tensors of a model file, by name (metadata, e.g. seconds, may differ).
+fn tensors(path: &Path) -> Vec<(String, Vec<u8>)> {
+    let bytes = std::fs::read(path).unwrap();
+    let st = SafeTensors::deserialize(&bytes).unwrap();
+    let mut v: Vec<(String, Vec<u8>)> =
+        st.tensors().into_iter().map(|(n, t)| (n.to_string(), t.data().to_vec())).collect();
+    v.sort();
+    v
+}
+
+const SETTINGS: [&str; 6] = ["--steps", "30", "--rays", "128", "--log2t", "12"];
+
+#[test]
+fn an_interrupted_run_resumes_to_the_same_model() {
+    let dir = scratch("resume");
+    let data = dir.join("data");
+    workspace::workspace(16, 8, 0.0, false).write_split(&data, "train").unwrap();
+    let data_s = data.to_str().unwrap();
+
+    let straight = dir.join("straight.safetensors");
+    let o = rnerf(&[&["train", "--data", data_s, "--out", straight.to_str().unwrap()], &SETTINGS[..]].concat())
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+
+    let out = dir.join("m.safetensors");
+    let out_s = out.to_str().unwrap();
+    let ckpt = checkpoint_path(&out);
+    assert_eq!(ckpt, dir.join("m.ckpt.safetensors"));
+    let args = [&["train", "--data", data_s, "--out", out_s, "--checkpoint-every", "5"], &SETTINGS[..]].concat();
+    let mut child = rnerf(&args).spawn().unwrap();
+    // The first checkpoint (step 5 of 30) shows the run is under way; then interrupt it.
+    let t0 = Instant::now();
+    while !ckpt.exists() {
+        assert!(t0.elapsed() < Duration::from_secs(120), "no checkpoint appeared");
+        assert!(child.try_wait().unwrap().is_none(), "the run ended before its first checkpoint");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let kill = Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
+    assert!(kill.success());
+    let o = child.wait_with_output().unwrap();
+    let msg = stderr(&o);
+    assert_eq!(o.status.code(), Some(130), "SIGINT must exit 130: {msg}");
+    assert!(msg.contains("interrupted") && msg.contains("--resume"), "{msg}");
+    assert!(!out.exists(), "an interrupted run must not write --out");
+    assert!(ckpt.exists());
+
+    let o = rnerf(&["train", "--resume", ckpt.to_str().unwrap(), "--data", data_s, "--out", out_s]).output().unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("resuming"), "{}", stderr(&o));
+    assert!(!ckpt.exists(), "a finished run removes its checkpoint");
+    let (a, b) = (tensors(&straight), tensors(&out));
+    assert_eq!(a.len(), b.len());
+    for ((na, ta), (nb, tb)) in a.iter().zip(&b) {
+        assert_eq!(na, nb);
+        assert!(ta == tb, "tensor {na} differs between the resumed and the uninterrupted run");
+    }
+    assert!(!a.iter().any(|(n, _)| n.starts_with("train.")), "a finished model carries no training state");
+}
+
+#[test]
+fn a_checkpoint_resumes_only_on_its_own_data() {
+    let dir = scratch("other_data");
+    let (data, other) = (dir.join("data"), dir.join("other"));
+    workspace::workspace(16, 4, 0.0, false).write_split(&data, "train").unwrap();
+    workspace::workspace(16, 4, 0.3, false).write_split(&other, "train").unwrap();
+    let out = dir.join("m.safetensors");
+    let x = dir.join("x.safetensors");
+    let (data_s, other_s, out_s, x_s) =
+        (data.to_str().unwrap(), other.to_str().unwrap(), out.to_str().unwrap(), x.to_str().unwrap());
+    let o = rnerf(&["train", "--data", data_s, "--out", out_s, "--steps", "3", "--rays", "64", "--log2t", "10"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    // A finished model is not a checkpoint.
+    let o = rnerf(&["train", "--resume", out_s, "--data", data_s, "--out", x_s]).output().unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("not a checkpoint"), "{}", stderr(&o));
+    // A checkpoint of 2 steps of 6 on `data`, written through the library from the dataset
+    // as `rnerf train` loads it.
+    let ds = Dataset::load(&data, "train", &LoadOptions { ground_truth: false, ..Default::default() }).unwrap();
+    let field = NerfField::new(NerfConfig {
+        grid: HashGridConfig { log2_table_size: 10, ..Default::default() },
+        aabb: ds.aabb,
+    });
+    let mut cfg = TrainConfig::with_steps(6);
+    cfg.rays_per_step = 64;
+    let mut t = Trainer::new(Isa::detect(), &field, ds.aabb, &ds.views, &cfg);
+    t.step().unwrap();
+    t.step().unwrap();
+    let ckpt = dir.join("c.ckpt.safetensors");
+    save_checkpoint(&ckpt, &field, t.state(), &cfg, views_fingerprint(&ds.views), &[]).unwrap();
+    let ckpt_s = ckpt.to_str().unwrap();
+    let o = rnerf(&["train", "--resume", ckpt_s, "--data", other_s, "--out", x_s]).output().unwrap();
+    let msg = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{msg}");
+    assert!(msg.contains("transforms_train.json") && msg.contains("not the data"), "{msg}");
+    assert!(!x.exists());
+    let o = rnerf(&["train", "--resume", ckpt_s, "--data", data_s, "--out", x_s]).output().unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("at step 2 of 6"), "{}", stderr(&o));
+    assert!(x.exists());
+}

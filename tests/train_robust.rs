@@ -1,0 +1,188 @@
+//! Crash-safe training: a run checkpointed, reloaded from the file and resumed (on another
+//! thread count) ends with the same bits as one never stopped — plain NeRF and residual model;
+//! non-finite losses skip steps and too many in a row stop with the last good parameters;
+//! a scene box the rays never cross stops with an error naming the box.
+
+use glam::Vec3;
+use residual_nerf::data::workspace;
+use residual_nerf::encoding::HashGridConfig;
+use residual_nerf::field::mix::{DensityMix, MixKind};
+use residual_nerf::field::mixnet::MixnetEncoding;
+use residual_nerf::field::residual::{ResidualConfig, ResidualField};
+use residual_nerf::field::{Nerf, NerfConfig, NerfField};
+use residual_nerf::io::{load_checkpoint, save_checkpoint, save_nerf, views_fingerprint, LoadedModel, ModelFile};
+use residual_nerf::render::{Aabb, OccupancyConfig, OccupancyGrid};
+use residual_nerf::rng::Rng;
+use residual_nerf::simd::Isa;
+use residual_nerf::train::model::Model;
+use residual_nerf::train::trainer::{TrainConfig, TrainError, TrainState, Trainer, View, MAX_BAD_STEPS_IN_A_ROW};
+use std::path::{Path, PathBuf};
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("train_robust").join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn field_config(aabb: Aabb) -> NerfConfig {
+    NerfConfig { grid: HashGridConfig { log2_table_size: 12, ..Default::default() }, aabb }
+}
+
+fn train_config(steps: u32) -> TrainConfig {
+    let mut cfg = TrainConfig::with_steps(steps);
+    cfg.rays_per_step = 128;
+    cfg.occupancy_interval = 8;
+    cfg.occupancy = OccupancyConfig { resolution: 16, warmup_steps: 16, steps_per_diagonal: 128, ..Default::default() };
+    cfg.random_background = true;
+    cfg.seed = 7;
+    cfg
+}
+
+fn run_to_end<M: Model>(trainer: &mut Trainer<'_, M>) {
+    while !trainer.is_done() {
+        trainer.step().expect("a clean scene trains");
+    }
+}
+
+fn same_state<P: PartialEq>(a: &TrainState<P>, b: &TrainState<P>) {
+    assert_eq!(a.step, b.step);
+    assert!(a.params == b.params, "parameters differ after resuming");
+    assert_eq!(a.occupancy.values(), b.occupancy.values(), "occupancy differs after resuming");
+    for (x, y) in a.adams.iter().zip(&b.adams) {
+        assert_eq!(x.steps(), y.steps());
+        assert_eq!(x.moments(), y.moments(), "Adam moments differ after resuming");
+    }
+}
+
+/// Trains `steps` steps straight, and again stopping at `stop`, writing a checkpoint file,
+/// loading it back and finishing on one thread; both states must be equal.
+fn resume_matches<M: ModelFile>(
+    model: &M,
+    aabb: Aabb,
+    views: &[View],
+    dir: &Path,
+    unpack: impl Fn(LoadedModel) -> (M::Params, OccupancyGrid),
+) where
+    M::Params: PartialEq,
+{
+    let isa = Isa::detect();
+    let cfg = train_config(40);
+    let mut straight = Trainer::new(isa, model, aabb, views, &cfg);
+    run_to_end(&mut straight);
+
+    let mut first = Trainer::new(isa, model, aabb, views, &cfg);
+    for _ in 0..17 {
+        first.step().unwrap();
+    }
+    let path = dir.join("run.ckpt.safetensors");
+    save_checkpoint(&path, model, first.state(), &cfg, views_fingerprint(views), &[]).unwrap();
+    drop(first);
+    let (loaded, checkpoint) = load_checkpoint(&path).unwrap();
+    assert_eq!(checkpoint.step, 17);
+    assert_eq!(checkpoint.fingerprint, views_fingerprint(views));
+    let cfg_back = checkpoint.config.clone();
+    assert_eq!(format!("{cfg_back:?}"), format!("{cfg:?}"), "settings must survive the file exactly");
+    let (params, occupancy) = unpack(loaded);
+    let state = checkpoint.into_state(model, params, occupancy).unwrap();
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+    let resumed = pool.install(|| {
+        let mut t = Trainer::from_state(isa, model, views, &cfg_back, state).unwrap();
+        run_to_end(&mut t);
+        t.into_state()
+    });
+    same_state(straight.state(), &resumed);
+}
+
+#[test]
+fn a_resumed_nerf_run_equals_an_uninterrupted_one() {
+    let scene = workspace::workspace(16, 8, 0.0, false);
+    let field = NerfField::new(field_config(scene.aabb));
+    resume_matches(&field, scene.aabb, &scene.views, &scratch("nerf"), |m| match m {
+        LoadedModel::Nerf(n) => (n.params, n.occupancy),
+        LoadedModel::Residual(_) => panic!("saved a NeRF"),
+    });
+}
+
+#[test]
+fn a_resumed_residual_run_equals_an_uninterrupted_one() {
+    let scene = workspace::workspace(16, 8, 0.5, true);
+    let bg_field = NerfField::new(field_config(scene.aabb));
+    let params = bg_field.init_params(&mut Rng::new(3));
+    let occupancy = OccupancyGrid::new(scene.aabb, train_config(1).occupancy);
+    let background = Nerf { field: bg_field, params, occupancy };
+    for mixnet in
+        [MixnetEncoding::Shared, MixnetEncoding::Own(HashGridConfig { log2_table_size: 10, ..Default::default() })]
+    {
+        let config =
+            ResidualConfig { residual: field_config(scene.aabb), kind: MixKind::Mixnet(DensityMix::Raw), mixnet };
+        let field = ResidualField::new(background.clone(), config);
+        resume_matches(&field, scene.aabb, &scene.views, &scratch("residual"), |m| match m {
+            LoadedModel::Residual(r) => (r.params, r.occupancy),
+            LoadedModel::Nerf(_) => panic!("saved a residual model"),
+        });
+    }
+}
+
+#[test]
+fn non_finite_steps_are_skipped_and_counted() {
+    let mut scene = workspace::workspace(16, 8, 0.0, false);
+    // A NaN in 1 pixel of 16 of one view: the steps that draw one are skipped.
+    for (i, px) in scene.views[0].rgb.iter_mut().enumerate() {
+        if i % 16 == 0 {
+            *px = [f32::NAN; 3];
+        }
+    }
+    let isa = Isa::detect();
+    let field = NerfField::new(field_config(scene.aabb));
+    let cfg = train_config(40);
+    let mut t = Trainer::new(isa, &field, scene.aabb, &scene.views, &cfg);
+    run_to_end(&mut t);
+    let state = t.into_state();
+    assert!(state.skipped > 0 && state.skipped < 40, "skipped {} of 40", state.skipped);
+    for adam in &state.adams {
+        assert_eq!(adam.steps(), 40 - state.skipped, "a skipped step must not reach Adam");
+    }
+    let nerf = Nerf { field, params: state.params, occupancy: state.occupancy };
+    let path = scratch("nan").join("m.safetensors");
+    save_nerf(&path, &nerf, &[]).expect("the parameters stay finite");
+}
+
+#[test]
+fn too_many_non_finite_steps_stop_with_the_last_good_parameters() {
+    let mut scene = workspace::workspace(16, 4, 0.0, false);
+    for v in &mut scene.views {
+        v.rgb.fill([f32::NAN; 3]);
+    }
+    let isa = Isa::detect();
+    let field = NerfField::new(field_config(scene.aabb));
+    let cfg = train_config(100);
+    let mut t = Trainer::new(isa, &field, scene.aabb, &scene.views, &cfg);
+    let initial = t.state().params.clone();
+    let err = loop {
+        if let Err(e) = t.step() {
+            break e;
+        }
+    };
+    assert_eq!(err, TrainError::NonFinite { step: MAX_BAD_STEPS_IN_A_ROW - 1, skipped: MAX_BAD_STEPS_IN_A_ROW });
+    assert!(err.to_string().contains("non-finite"), "{err}");
+    assert!(t.state().params == initial, "no update may reach the parameters");
+}
+
+#[test]
+fn a_box_the_rays_never_cross_stops_with_an_error_naming_it() {
+    let scene = workspace::workspace(16, 4, 0.0, false);
+    let far = Aabb { min: Vec3::splat(100.0), max: Vec3::splat(101.0) };
+    let field = NerfField::new(field_config(far));
+    let cfg = train_config(200);
+    let mut t = Trainer::new(Isa::detect(), &field, far, &scene.views, &cfg);
+    let err = loop {
+        if let Err(e) = t.step() {
+            break e;
+        }
+        assert!(!t.is_done(), "training must not finish without a single sample");
+    };
+    let msg = err.to_string();
+    assert!(matches!(err, TrainError::NoLiveSamples { .. }), "{msg}");
+    assert!(msg.contains("scene box") && msg.contains("[100.0, 100.0, 100.0]") && !msg.contains('\n'), "{msg}");
+}
