@@ -123,18 +123,21 @@ pub fn save_checkpoint<M: ModelFile>(
 }
 
 /// Loads a checkpoint: the model and its training state. A finished model (no training
-/// state) is refused.
+/// state) is refused; errors name the file.
 pub fn load_checkpoint(path: &Path) -> Result<(LoadedModel, Checkpoint), String> {
     let bytes = read_model_bytes(path)?;
-    let at = |e: String| format!("{}: {e}", path.display());
-    let model = model_from_bytes(&bytes).map_err(at)?;
-    let r = ModelReader::parse(&bytes).map_err(at)?;
+    checkpoint_from_bytes(&bytes).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// A checkpoint from model-file bytes.
+pub fn checkpoint_from_bytes(bytes: &[u8]) -> Result<(LoadedModel, Checkpoint), String> {
+    let model = model_from_bytes(bytes)?;
+    let r = ModelReader::parse(bytes)?;
     let occupancy = match &model {
         LoadedModel::Nerf(n) => n.occupancy.config().clone(),
         LoadedModel::Residual(m) => m.occupancy.config().clone(),
     };
-    let checkpoint = read_checkpoint(&r, occupancy).map_err(at)?;
-    Ok((model, checkpoint))
+    Ok((model, read_checkpoint(&r, occupancy)?))
 }
 
 fn read_checkpoint(r: &ModelReader, occupancy: OccupancyConfig) -> Result<Checkpoint, String> {
