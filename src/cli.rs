@@ -22,7 +22,8 @@ commands:
          continue an interrupted run bit-exactly, with the checkpoint's settings, on the same data
   render --model MODEL --data DIR --out DIR [--split NAME] [--depth threshold|expected]
          [--m M | --m-raw S] [--threads N]
-         depth (EXR metres, 16-bit PNG mm, .npy metres, colourised PNG) and RGB of the split's views
+         depth (EXR metres, 16-bit PNG mm, .npy metres, colourised PNG), PLY point cloud (world
+         frame) and RGB of the split's views
   eval   --model MODEL --data DIR [--split NAME] [--depth threshold|expected] [--m M | --m-raw S]
          [--crop frame|full|HALF] [--limit METRES] [--json] [--threads N]
          depth MAE / RMSE / hole rate inside the crops, and PSNR (default split: test)

@@ -4,9 +4,41 @@
 //! depth of transparent objects, built on hand-vectorised kernels (AVX2+FMA+F16C, NEON) with
 //! scalar twins, dispatched at run time.
 //!
+//! On the robot: load a model once, render depth for each camera pose into your own buffer
+//! ([`onboard::DepthRenderer`]; z or range in metres, NaN holes). Here the model is trained
+//! in a few steps on a synthesised workspace; a robot loads its file with
+//! [`onboard::DepthRenderer::load`].
+//!
+//! ```
+//! use residual_nerf::data::workspace;
+//! use residual_nerf::encoding::HashGridConfig;
+//! use residual_nerf::field::NerfConfig;
+//! use residual_nerf::io::LoadedModel;
+//! use residual_nerf::onboard::{DepthKind, DepthMethod, DepthRenderer, DepthRequest};
+//! use residual_nerf::render::{DensityThreshold, Intrinsics, Pose};
+//! use residual_nerf::simd::Isa;
+//! use residual_nerf::train::trainer::{train_nerf, TrainConfig};
+//!
+//! let scene = workspace::workspace(16, 6, 0.0, false); // posed images, a box around them
+//! let field = NerfConfig { grid: HashGridConfig { log2_table_size: 12, ..Default::default() }, aabb: scene.aabb };
+//! let mut cfg = TrainConfig::with_steps(20);
+//! cfg.rays_per_step = 256;
+//! let nerf = train_nerf(Isa::detect(), &scene.views, field, &cfg, 0, |_| {})?;
+//!
+//! let mut camera = DepthRenderer::new(LoadedModel::Nerf(Box::new(nerf))).with_threads(2)?;
+//! let k = Intrinsics::from_fov_x(32, 24, 0.9);
+//! let pose = Pose::look_at([1.0, -1.0, 1.0].into(), workspace::TARGET);
+//! let mut depth = vec![0.0f32; 32 * 24]; // allocated once, reused every frame
+//! let request = DepthRequest { method: DepthMethod::Threshold(DensityThreshold::Sigma(1.0)), kind: DepthKind::Z };
+//! camera.depth(&k, &pose, request, &mut depth)?;
+//! assert!(depth.iter().all(|z| z.is_nan() || *z > 0.0)); // metres along the viewing axis
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
 //! The data flow (see `ARCHITECTURE.md`): positions → [`encoding::HashGrid`] (fp16 table) →
 //! density [`mlp::Mlp`] → σ and geometry features; directions → [`encoding::sh4`] → colour
 //! MLP → RGB; compositing → loss → backward through the same kernels → [`train::Adam`].
+//! The kernels are usable on their own:
 //!
 //! ```
 //! use residual_nerf::encoding::{HashGrid, HashGridConfig, HashGridParams};
@@ -42,6 +74,7 @@ pub mod eval;
 pub mod field;
 pub mod io;
 pub mod mlp;
+pub mod onboard;
 pub mod render;
 pub mod rng;
 pub mod simd;

@@ -1,5 +1,6 @@
-//! `rnerf render`: depth (EXR metres, 16-bit PNG mm, .npy metres, colourised PNG), RGB and the
-//! camera of every view of a split, into an output folder.
+//! `rnerf render`: depth (EXR metres, 16-bit PNG mm, .npy metres, colourised PNG), a coloured
+//! world-frame point cloud (PLY), RGB and the camera of every view of a split, into an output
+//! folder.
 
 use super::Progress;
 use crate::cli::DepthChoice;
@@ -56,6 +57,7 @@ fn render_all<M: Model>(
         export::write(&file("_depth.npy"), Ok(export::depth_npy_bytes(z, w, h)))?;
         export::write(&file("_depth_vis.png"), export::depth_vis_png_bytes(z, w, h, near, far))?;
         export::write(&file("_rgb.png"), export::rgb_png_bytes(&rgb, w, h))?;
+        export::write(&file("_points.ply"), Ok(export::depth_ply_bytes(z, k, &v.pose, Some(&rgb))))?;
         if beta {
             let grey: Vec<[f32; 3]> = b.iter().map(|&x| [x; 3]).collect();
             export::write(&file("_beta.png"), export::rgb_png_bytes(&grey, w, h))?;

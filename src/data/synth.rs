@@ -6,7 +6,7 @@
 
 use crate::render::{pixel_ray, Aabb, Intrinsics, Pose, Ray};
 use crate::train::trainer::View;
-use glam::{Mat3, Vec3};
+use glam::Vec3;
 
 /// Half-size of the room (metres): the room is `[−1, 1]³`.
 pub const ROOM: f32 = 1.0;
@@ -142,14 +142,6 @@ pub fn trace(ray: &Ray) -> (f32, [f32; 3]) {
     best
 }
 
-/// Camera on a circle of radius `radius` at height `height`, looking at the sphere's centre, +Z up.
-pub fn look_at_pose(eye: Vec3, target: Vec3) -> Pose {
-    let forward = (target - eye).normalize();
-    let right = forward.cross(Vec3::Z).normalize();
-    let up = right.cross(forward);
-    Pose { rotation: Mat3::from_cols(right, up, -forward), translation: eye }
-}
-
 /// Renders `n_views` views of `size × size` pixels (horizontal FOV 60°) from cameras on a
 /// ring inside the room, at azimuths offset by `phase` (radians).
 pub fn room(size: u32, n_views: usize, phase: f32) -> SynthScene {
@@ -157,7 +149,7 @@ pub fn room(size: u32, n_views: usize, phase: f32) -> SynthScene {
     let poses = (0..n_views).map(|v| {
         let a = phase + v as f32 / n_views as f32 * std::f32::consts::TAU;
         let eye = Vec3::new(0.75 * a.cos(), 0.75 * a.sin(), 0.1 + 0.25 * (3.0 * a).sin());
-        look_at_pose(eye, SPHERE.0)
+        Pose::look_at(eye, SPHERE.0)
     });
     let (views, depth) = render_views(&k, poses, trace);
     // The box encloses the room with a margin, so the walls are inside it (marching ends at the
@@ -203,7 +195,7 @@ pub fn tabletop(size: u32, n_views: usize, phase: f32) -> SynthScene {
         let a = phase + v as f32 * golden;
         let elev = (25.0 + 35.0 * ((v as f32 * 0.618_034).fract())).to_radians();
         let eye = TABLE_SPHERE.0 + 2.2 * Vec3::new(elev.cos() * a.cos(), elev.cos() * a.sin(), elev.sin());
-        look_at_pose(eye, TABLE_SPHERE.0)
+        Pose::look_at(eye, TABLE_SPHERE.0)
     });
     let (views, depth) = render_views(&k, poses, trace_tabletop);
     SynthScene {

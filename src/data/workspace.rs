@@ -11,7 +11,8 @@
 //! The mask marks pixels whose first hit is glass; the crop is the mask's bounding box grown
 //! by 10% of its larger side (the full image when there is no glass), as in `shared/data/dev`.
 
-use super::synth::{look_at_pose, SynthScene};
+use super::synth::SynthScene;
+use crate::render::Pose;
 use crate::render::{pixel_ray, Aabb, Intrinsics, Ray};
 use crate::train::trainer::View;
 use glam::Vec3;
@@ -256,7 +257,7 @@ pub fn workspace(size: u32, n_views: usize, phase: f32, glass: bool) -> SynthSce
                 + (65f32.to_radians().sin() - 25f32.to_radians().sin()) * ((v as f32 * 0.618_034 + 0.31).fract());
             let elev = s.asin();
             let eye = TARGET + CAMERA_DISTANCE * Vec3::new(elev.cos() * a.cos(), elev.cos() * a.sin(), elev.sin());
-            let pose = look_at_pose(eye, TARGET);
+            let pose = Pose::look_at(eye, TARGET);
             let n = (size * size) as usize;
             let (mut rgb, mut z, mut mask) = (Vec::with_capacity(n), Vec::with_capacity(n), Vec::with_capacity(n));
             for j in 0..size {

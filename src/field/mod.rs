@@ -246,8 +246,8 @@ impl NerfField {
         let (w, so, ci) = (self.grid.output_width(), self.density.output_stride(), self.colour.input_stride());
         let co = self.colour.output_stride();
         let enc = &ctx.enc;
-        let parts = split_rows(raw, n, 1).into_iter().zip(split_rows(rgb_raw, n, 1));
-        ctx.slots.par_iter_mut().zip(parts.collect::<Vec<_>>()).enumerate().for_each(|(s, (slot, (raw, rgb)))| {
+        let parts = split_rows(raw, n, 1).into_par_iter().zip(split_rows(rgb_raw, n, 1));
+        ctx.slots.par_iter_mut().zip(parts).enumerate().for_each(|(s, (slot, (raw, rgb)))| {
             let r = slot_range(n, s);
             let rows = r.len();
             self.density.forward(isa, &params.density, &enc[r.start * w..r.end * w], rows, &mut slot.density);

@@ -5,10 +5,12 @@
 //! - `.npy` float32 metres, shape `(height, width)`, NaN holes (Dex-Net / GQ-CNN);
 //! - a colourised 8-bit PNG for people (near = dark purple, far = yellow, holes black);
 //! - RGB as 8-bit sRGB-encoded PNG (values as trained, clamped to [0, 1]);
+//! - a point cloud as binary PLY in the world frame (metres; float x, y, z and, with colour,
+//!   uchar red, green, blue), holes left out;
 //! - the camera as JSON (intrinsics, pose, depth convention).
 
 use super::atomic::write_atomic;
-use crate::render::{Intrinsics, Pose};
+use crate::render::{pixel_ray, Intrinsics, Pose};
 use std::io::Cursor;
 use std::path::Path;
 
@@ -131,6 +133,34 @@ pub fn rgb_png_bytes(rgb: &[[f32; 3]], width: u32, height: u32) -> Result<Vec<u8
     check(rgb.len(), width, height);
     let px: Vec<u8> = rgb.iter().flat_map(|c| c.map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8)).collect();
     png_bytes(image::RgbImage::from_raw(width, height, px).expect("sized above"))
+}
+
+/// The z-depth image `depth` of camera `k` at `pose` as a binary little-endian PLY point
+/// cloud in the world frame (holes left out), coloured by `rgb` when given.
+pub fn depth_ply_bytes(depth: &[f32], k: &Intrinsics, pose: &Pose, rgb: Option<&[[f32; 3]]>) -> Vec<u8> {
+    check(depth.len(), k.width, k.height);
+    if let Some(c) = rgb {
+        check(c.len(), k.width, k.height);
+    }
+    let points: Vec<usize> = (0..depth.len()).filter(|&p| depth[p].is_finite()).collect();
+    let mut out = format!(
+        "ply\nformat binary_little_endian 1.0\ncomment residual-nerf depth, world frame, metres\n\
+         element vertex {}\nproperty float x\nproperty float y\nproperty float z\n{}end_header\n",
+        points.len(),
+        if rgb.is_some() { "property uchar red\nproperty uchar green\nproperty uchar blue\n" } else { "" }
+    )
+    .into_bytes();
+    for p in points {
+        let ray = pixel_ray(k, pose, p as u32 % k.width, p as u32 / k.width);
+        let x = ray.at(ray.z_to_range(depth[p]));
+        for v in x.to_array() {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+        if let Some(c) = rgb {
+            out.extend(c[p].map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8));
+        }
+    }
+    out
 }
 
 /// The camera of a depth image as JSON: intrinsics, camera-to-world pose (OpenGL camera) and

@@ -48,6 +48,15 @@ pub struct Pose {
 }
 
 impl Pose {
+    /// A camera at `eye` looking at `target`, world +Z up (the image's up is as close to +Z
+    /// as the viewing direction allows; `eye - target` must not be vertical).
+    pub fn look_at(eye: Vec3, target: Vec3) -> Pose {
+        let forward = (target - eye).normalize();
+        let right = forward.cross(Vec3::Z).normalize();
+        let up = right.cross(forward);
+        Pose { rotation: Mat3::from_cols(right, up, -forward), translation: eye }
+    }
+
     /// From the rows of a `transform_matrix` (3×4 or the top of a 4×4).
     pub fn from_rows(rows: [[f32; 4]; 3]) -> Pose {
         let col = |c: usize| Vec3::new(rows[0][c], rows[1][c], rows[2][c]);

@@ -25,16 +25,15 @@ pub fn accumulate_in_order<'a>(parts: impl IntoIterator<Item = &'a [f32]>, out: 
     }
 }
 
-/// Splits `buf` (`n` rows of `stride` elements) into the [`SLOTS`] row ranges of [`slot_range`].
-pub fn split_rows<T>(buf: &mut [T], n: usize, stride: usize) -> Vec<&mut [T]> {
-    let mut parts = Vec::with_capacity(SLOTS);
+/// Splits `buf` (`n` rows of `stride` elements) into the [`SLOTS`] row ranges of
+/// [`slot_range`] (an array: no allocation per call).
+pub fn split_rows<T>(buf: &mut [T], n: usize, stride: usize) -> [&mut [T]; SLOTS] {
     let mut rest = &mut buf[..n * stride];
-    for s in 0..SLOTS {
-        let (head, tail) = rest.split_at_mut(slot_range(n, s).len() * stride);
-        parts.push(head);
+    std::array::from_fn(|s| {
+        let (head, tail) = std::mem::take(&mut rest).split_at_mut(slot_range(n, s).len() * stride);
         rest = tail;
-    }
-    parts
+        head
+    })
 }
 
 #[cfg(test)]

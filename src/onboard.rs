@@ -1,0 +1,232 @@
+//! The robot-facing API: load a trained model once, then render depth — and, when asked,
+//! colour and β — for any camera pose and intrinsics into the caller's buffers. After the
+//! first frame of a given size nothing is allocated per frame; the thread count is the
+//! caller's ([`DepthRenderer::with_threads`]); the depth convention is part of the request
+//! ([`DepthKind`]: z or range, metres, NaN holes).
+//!
+//! ```no_run
+//! use residual_nerf::onboard::{DepthKind, DepthMethod, DepthRenderer, DepthRequest};
+//! use residual_nerf::render::{Intrinsics, Pose};
+//!
+//! let mut cam = DepthRenderer::load("workspace.safetensors".as_ref())?.with_threads(2)?;
+//! let k = Intrinsics::from_fov_x(640, 480, 0.9);
+//! let pose = Pose::look_at([0.0, -0.6, 0.5].into(), [0.0, 0.0, 0.05].into());
+//! let mut depth = vec![0.0f32; 640 * 480];
+//! let request = DepthRequest { method: DepthMethod::default(), kind: DepthKind::Z };
+//! cam.depth(&k, &pose, request, &mut depth)?; // metres along the viewing axis, NaN = hole
+//! # Ok::<(), String>(())
+//! ```
+
+use crate::field::residual::ResidualField;
+use crate::field::NerfField;
+use crate::io::{load_model, LoadedModel};
+use crate::render::view::Scene;
+use crate::render::{pixel_ray, Aabb, DensityThreshold, FullOutputs, Intrinsics, Pose, ViewRenderer};
+use crate::simd::Isa;
+use std::path::Path;
+
+/// How depth is read off each ray.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum DepthMethod {
+    /// Dex-NeRF: the first sample whose density σ reaches the threshold (holes where none
+    /// does). The default, at σ ≥ [`crate::cli::DEFAULT_M`] per metre.
+    Threshold(DensityThreshold),
+    /// NeRF's expected depth `Σ w t` (paper Eq. 3); never a hole, blurred at glass.
+    Expected,
+}
+
+impl Default for DepthMethod {
+    fn default() -> Self {
+        DepthMethod::Threshold(DensityThreshold::Sigma(crate::cli::DEFAULT_M))
+    }
+}
+
+/// What a depth value measures. Both are metres (the dataset's unit); holes are NaN.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum DepthKind {
+    /// Distance along the camera's viewing axis (ROS depth images, Dex-Net, OpenCV).
+    #[default]
+    Z,
+    /// Distance along each pixel's ray from the camera centre (a lidar's range).
+    Range,
+}
+
+/// A depth request: method and convention.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct DepthRequest {
+    /// How depth is read off a ray.
+    pub method: DepthMethod,
+    /// What the values measure.
+    pub kind: DepthKind,
+}
+
+/// Optional outputs of [`DepthRenderer::render`] beside depth; each `width × height`.
+#[derive(Default)]
+pub struct Extras<'a> {
+    /// Composited linear RGB in [0, 1], over [`DepthRenderer::background`].
+    pub rgb: Option<&'a mut [[f32; 3]]>,
+    /// β composited like a colour: where the scene differs from the background (0 for a
+    /// plain NeRF).
+    pub beta: Option<&'a mut [f32]>,
+}
+
+/// A loaded model (plain NeRF or residual) and the reusable buffers to render it.
+pub struct DepthRenderer {
+    model: LoadedModel,
+    nerf: ViewRenderer<NerfField>,
+    residual: ViewRenderer<ResidualField>,
+    pool: Option<rayon::ThreadPool>,
+    isa: Isa,
+    /// Colour behind the scene for [`Extras::rgb`]. Defaults to white.
+    pub background: [f32; 3],
+}
+
+impl DepthRenderer {
+    /// Loads a model file (either kind); errors name the file.
+    pub fn load(path: &Path) -> Result<DepthRenderer, String> {
+        Ok(DepthRenderer::new(load_model(path)?))
+    }
+
+    /// Wraps a model already in memory. Renders on the global rayon pool at the best CPU
+    /// level this machine has.
+    pub fn new(model: LoadedModel) -> DepthRenderer {
+        DepthRenderer {
+            model,
+            nerf: ViewRenderer::new(),
+            residual: ViewRenderer::new(),
+            pool: None,
+            isa: Isa::detect(),
+            background: [1.0; 3],
+        }
+    }
+
+    /// Renders on a pool of its own with `threads` threads (1 keeps all work on the calling
+    /// thread's pool worker; results are the same bits for any count).
+    pub fn with_threads(mut self, threads: usize) -> Result<DepthRenderer, String> {
+        if threads == 0 {
+            return Err("threads: must be at least 1".into());
+        }
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .thread_name(|i| format!("rnerf-render-{i}"))
+            .build()
+            .map_err(|e| format!("threads: cannot start {threads} threads: {e}"))?;
+        self.pool = Some(pool);
+        Ok(self)
+    }
+
+    /// The model.
+    pub fn model(&self) -> &LoadedModel {
+        &self.model
+    }
+
+    /// The scene box (world frame, metres).
+    pub fn scene_box(&self) -> Aabb {
+        match &self.model {
+            LoadedModel::Nerf(n) => n.field.config().aabb,
+            LoadedModel::Residual(r) => r.field.residual().config().aabb,
+        }
+    }
+
+    /// Depth of every pixel of the camera `k` at `pose` (camera-to-world, OpenGL camera) into
+    /// `depth` (`width × height`, row-major from the top-left). Threshold depth evaluates only
+    /// the density network and stops each ray at its first solid sample.
+    pub fn depth(
+        &mut self,
+        k: &Intrinsics,
+        pose: &Pose,
+        request: DepthRequest,
+        depth: &mut [f32],
+    ) -> Result<(), String> {
+        self.render(k, pose, request, depth, Extras::default())
+    }
+
+    /// [`DepthRenderer::depth`] plus the `extras` asked for, from one pass over the field.
+    pub fn render(
+        &mut self,
+        k: &Intrinsics,
+        pose: &Pose,
+        request: DepthRequest,
+        depth: &mut [f32],
+        extras: Extras<'_>,
+    ) -> Result<(), String> {
+        let n = k.width as usize * k.height as usize;
+        let sized = |len: usize, what: &str| match len == n {
+            true => Ok(()),
+            false => Err(format!("{what} buffer holds {len} values, the camera has {}x{} = {n}", k.width, k.height)),
+        };
+        sized(depth.len(), "depth")?;
+        if let Some(rgb) = &extras.rgb {
+            sized(rgb.len(), "rgb")?;
+        }
+        if let Some(beta) = &extras.beta {
+            sized(beta.len(), "beta")?;
+        }
+        if !(k.fx.is_finite() && k.fy.is_finite() && k.fx > 0.0 && k.fy > 0.0 && k.cx.is_finite() && k.cy.is_finite()) {
+            return Err(format!("intrinsics fx={} fy={} cx={} cy={} are not a camera", k.fx, k.fy, k.cx, k.cy));
+        }
+        if !(pose.translation.is_finite() && pose.rotation.is_finite()) {
+            return Err("pose holds a non-finite value".into());
+        }
+        let (isa, background) = (self.isa, self.background);
+        let DepthRenderer { model, nerf, residual, pool, .. } = self;
+        let job = || match model {
+            LoadedModel::Nerf(m) => draw(isa, nerf, &Scene::from(&**m), k, pose, request, background, depth, extras),
+            LoadedModel::Residual(m) => draw(isa, residual, &m.scene(), k, pose, request, background, depth, extras),
+        };
+        match pool {
+            Some(p) => p.install(job),
+            None => job(),
+        }
+        if request.kind == DepthKind::Range {
+            for (p, d) in depth.iter_mut().enumerate() {
+                let ray = pixel_ray(k, pose, p as u32 % k.width, p as u32 / k.width);
+                *d = ray.z_to_range(*d);
+            }
+        }
+        Ok(())
+    }
+}
+
+/// One frame into the caller's buffers: the depth-only path when only threshold depth is
+/// asked for, the full one otherwise.
+#[allow(clippy::too_many_arguments)]
+fn draw<M: crate::train::model::Model>(
+    isa: Isa,
+    renderer: &mut ViewRenderer<M>,
+    scene: &Scene<'_, M>,
+    k: &Intrinsics,
+    pose: &Pose,
+    request: DepthRequest,
+    background: [f32; 3],
+    depth: &mut [f32],
+    extras: Extras<'_>,
+) {
+    let (m, expected) = match request.method {
+        DepthMethod::Threshold(m) => (m, false),
+        DepthMethod::Expected => (DepthMethod::default().threshold(), true),
+    };
+    if !expected && extras.rgb.is_none() && extras.beta.is_none() {
+        renderer.depth(isa, scene, k, pose, m, depth);
+        return;
+    }
+    let (threshold_z, expected_z): (&mut [f32], &mut [f32]) =
+        if expected { (&mut [], depth) } else { (depth, &mut []) };
+    let out = FullOutputs {
+        rgb: extras.rgb.unwrap_or(&mut []),
+        expected_z,
+        threshold_z,
+        beta: extras.beta.unwrap_or(&mut []),
+    };
+    renderer.full(isa, scene, k, pose, background, m, out);
+}
+
+impl DepthMethod {
+    /// The density threshold (for [`DepthMethod::Expected`], the default one).
+    fn threshold(self) -> DensityThreshold {
+        match self {
+            DepthMethod::Threshold(m) => m,
+            DepthMethod::Expected => DensityThreshold::Sigma(crate::cli::DEFAULT_M),
+        }
+    }
+}

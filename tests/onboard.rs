@@ -1,0 +1,148 @@
+//! The robot-facing API ([`DepthRenderer`]): the same depth as the renderer it wraps, in both
+//! conventions (range = z / cos of the pixel's angle to the axis), the same bits on any thread
+//! count, extras from one pass, wrong buffers refused without a panic (no allocation per frame:
+//! `tests/onboard_alloc.rs`); and the PLY export puts each point where its depth says, in the world.
+
+use glam::Vec3;
+use residual_nerf::data::synth;
+use residual_nerf::encoding::HashGridConfig;
+use residual_nerf::field::{Nerf, NerfConfig};
+use residual_nerf::io::export::depth_ply_bytes;
+use residual_nerf::io::LoadedModel;
+use residual_nerf::onboard::{DepthKind, DepthMethod, DepthRenderer, DepthRequest, Extras};
+use residual_nerf::render::{pixel_ray, DensityThreshold, Intrinsics, OccupancyConfig, Pose, ViewRenderer};
+use residual_nerf::simd::Isa;
+use residual_nerf::train::trainer::{train_nerf, TrainConfig};
+
+fn trained() -> Nerf {
+    let scene = synth::tabletop(16, 12, 0.0);
+    let field = NerfConfig {
+        grid: HashGridConfig { levels: 8, log2_table_size: 12, base_resolution: 4, finest_resolution: 64 },
+        aabb: scene.aabb,
+    };
+    let mut cfg = TrainConfig::with_steps(40);
+    cfg.rays_per_step = 512;
+    cfg.background = synth::SKY;
+    cfg.occupancy = OccupancyConfig { resolution: 16, steps_per_diagonal: 128, warmup_steps: 16, ..Default::default() };
+    train_nerf(Isa::detect(), &scene.views, field, &cfg, 0, |_| {}).expect("trains")
+}
+
+fn cameras() -> Vec<(Intrinsics, Pose)> {
+    synth::tabletop(24, 3, 0.3).views.into_iter().map(|v| (v.intrinsics, v.pose)).collect()
+}
+
+const M: DensityThreshold = DensityThreshold::Sigma(3.0);
+
+fn bits(x: &[f32]) -> Vec<u32> {
+    x.iter().map(|v| v.to_bits()).collect()
+}
+
+#[test]
+fn depth_matches_the_renderer_in_both_conventions_on_any_thread_count() {
+    let nerf = trained();
+    let isa = Isa::detect();
+    let mut reference = ViewRenderer::new();
+    let mut one = DepthRenderer::new(LoadedModel::Nerf(Box::new(nerf.clone()))).with_threads(1).unwrap();
+    let mut two = DepthRenderer::new(LoadedModel::Nerf(Box::new(nerf.clone()))).with_threads(2).unwrap();
+    let z_req = DepthRequest { method: DepthMethod::Threshold(M), kind: DepthKind::Z };
+    let range_req = DepthRequest { kind: DepthKind::Range, ..z_req };
+    for (k, pose) in cameras() {
+        let n = (k.width * k.height) as usize;
+        let mut want = vec![0.0; n];
+        reference.depth(isa, &(&nerf).into(), &k, &pose, M, &mut want);
+        assert!(want.iter().any(|z| z.is_finite()), "the view should see the table");
+        let (mut a, mut b, mut r) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        one.depth(&k, &pose, z_req, &mut a).unwrap();
+        two.depth(&k, &pose, z_req, &mut b).unwrap();
+        assert_eq!(bits(&a), bits(&want), "onboard depth differs from the renderer's");
+        assert_eq!(bits(&a), bits(&b), "1 and 2 threads differ");
+        two.depth(&k, &pose, range_req, &mut r).unwrap();
+        for p in 0..n {
+            let ray = pixel_ray(&k, &pose, p as u32 % k.width, p as u32 / k.width);
+            assert_eq!(r[p].is_nan(), a[p].is_nan());
+            if a[p].is_finite() {
+                // The point at that range lies at that z along the viewing axis.
+                let z = (ray.at(r[p]) - pose.translation).dot(pose.forward());
+                assert!(
+                    (z - a[p]).abs() <= 1e-5 * a[p].abs().max(1.0),
+                    "pixel {p}: range {} gives z {z}, not {}",
+                    r[p],
+                    a[p]
+                );
+                assert!(r[p] >= a[p] - 1e-6);
+            }
+        }
+    }
+}
+
+#[test]
+fn expected_depth_rgb_and_beta_come_from_one_full_pass() {
+    let nerf = trained();
+    let isa = Isa::detect();
+    let mut cam = DepthRenderer::new(LoadedModel::Nerf(Box::new(nerf.clone())));
+    cam.background = synth::SKY;
+    for (k, pose) in cameras() {
+        let n = (k.width * k.height) as usize;
+        let want = nerf.render(isa, &k, &pose, synth::SKY, M);
+        let (mut z, mut rgb, mut beta) = (vec![0.0; n], vec![[0.0; 3]; n], vec![1.0; n]);
+        let req = DepthRequest { method: DepthMethod::Expected, kind: DepthKind::Z };
+        cam.render(&k, &pose, req, &mut z, Extras { rgb: Some(&mut rgb), beta: Some(&mut beta) }).unwrap();
+        assert_eq!(bits(&z), bits(&want.expected_z));
+        assert_eq!(rgb, want.rgb);
+        assert!(beta.iter().all(|&b| b == 0.0), "a plain NeRF has β = 0");
+        let req = DepthRequest { method: DepthMethod::Threshold(M), kind: DepthKind::Z };
+        cam.render(&k, &pose, req, &mut z, Extras { rgb: Some(&mut rgb), beta: None }).unwrap();
+        assert_eq!(bits(&z), bits(&want.threshold_z));
+    }
+}
+
+#[test]
+fn wrong_buffers_and_cameras_are_refused_without_a_panic() {
+    let mut cam = DepthRenderer::new(LoadedModel::Nerf(Box::new(trained())));
+    let (k, pose) = cameras().remove(0);
+    let n = (k.width * k.height) as usize;
+    let req = DepthRequest::default();
+    let e = cam.depth(&k, &pose, req, &mut vec![0.0; n - 1]).unwrap_err();
+    assert!(e.contains("depth buffer") && e.contains("24x24"), "{e}");
+    let mut z = vec![0.0; n];
+    let e = cam.render(&k, &pose, req, &mut z, Extras { rgb: Some(&mut [[0.0; 3]; 3]), beta: None }).unwrap_err();
+    assert!(e.contains("rgb buffer"), "{e}");
+    let bad_k = Intrinsics { fx: 0.0, ..k };
+    assert!(cam.depth(&bad_k, &pose, req, &mut z).unwrap_err().contains("intrinsics"));
+    let bad_pose = Pose { translation: Vec3::NAN, ..pose };
+    assert!(cam.depth(&k, &bad_pose, req, &mut z).unwrap_err().contains("pose"));
+    assert!(DepthRenderer::new(LoadedModel::Nerf(Box::new(trained()))).with_threads(0).is_err());
+    assert!(DepthRenderer::load("/nonexistent/m.safetensors".as_ref()).is_err());
+}
+
+#[test]
+fn ply_points_lie_where_their_depth_says() {
+    // A camera 2 m above a floor at z = 0 looking straight down... tilted a little; depth of
+    // the floor computed analytically per pixel; two holes.
+    let k = Intrinsics::from_fov_x(8, 6, 1.0);
+    let pose = Pose::look_at(Vec3::new(0.3, -0.2, 2.0), Vec3::new(0.0, 0.1, 0.0));
+    let mut depth: Vec<f32> = (0..48)
+        .map(|p| {
+            let ray = pixel_ray(&k, &pose, p % 8, p / 8);
+            ray.range_to_z(-ray.origin.z / ray.dir.z)
+        })
+        .collect();
+    depth[5] = f32::NAN;
+    depth[17] = f32::NAN;
+    let rgb: Vec<[f32; 3]> = (0..48).map(|p| [p as f32 / 47.0, 0.5, 1.0]).collect();
+    let ply = depth_ply_bytes(&depth, &k, &pose, Some(&rgb));
+    let end = b"end_header\n";
+    let at = ply.windows(end.len()).position(|w| w == end).unwrap() + end.len();
+    let header = std::str::from_utf8(&ply[..at]).unwrap();
+    assert!(header.starts_with("ply\nformat binary_little_endian 1.0\n"), "{header}");
+    assert!(header.contains("element vertex 46\n") && header.contains("property uchar red"), "{header}");
+    let body = &ply[at..];
+    assert_eq!(body.len(), 46 * 15);
+    let f = |b: &[u8]| f32::from_le_bytes(b.try_into().unwrap());
+    for (i, v) in body.chunks_exact(15).enumerate() {
+        let p = Vec3::new(f(&v[0..4]), f(&v[4..8]), f(&v[8..12]));
+        assert!(p.z.abs() < 1e-5, "point {i} {p:?} is not on the floor");
+        assert!(p.x.abs() < 5.0 && p.y.abs() < 5.0);
+    }
+    assert_eq!(&body[12..15], &[0, 128, 255]);
+}
