@@ -4,13 +4,16 @@
 //! 32-bit float EXR (metres, NaN holes: ROS 32FC1), 16-bit PNG millimetres (0 = hole: ROS
 //! 16UC1), `.npy` float32 metres + intrinsics JSON (Dex-Net / GQ-CNN) and a world-frame PLY.
 //!
-//! `cargo run --release --example render_depth -- [MODEL] [OUT_DIR]`
+//! `cargo run --release --example render_depth -- [MODEL [OUT_DIR [DATA_DIR]]]`
 //!
 //! Without MODEL it first trains a small workspace NeRF on a synthesised scene (≈ 30 s on two
-//! cores) and saves it, so the example needs no files.
+//! cores) and saves it, so the example needs no files. With DATA_DIR the cameras are the first
+//! three of its test split (intrinsics and poses); otherwise three 200×200 cameras around the
+//! scene box. Each view is rendered 5 times; the median time is printed (the first frame also
+//! grows the renderer's buffers).
 
 use residual_nerf::app::demo_config;
-use residual_nerf::data::workspace;
+use residual_nerf::data::{workspace, Dataset, LoadOptions};
 use residual_nerf::io::{export, save_nerf};
 use residual_nerf::onboard::{DepthKind, DepthMethod, DepthRenderer, DepthRequest};
 use residual_nerf::render::{Intrinsics, Pose};
@@ -23,6 +26,7 @@ fn main() -> Result<(), String> {
     let mut args = std::env::args().skip(1);
     let model = args.next().map(PathBuf::from);
     let out = PathBuf::from(args.next().unwrap_or_else(|| "render-depth-out".into()));
+    let data = args.next().map(PathBuf::from);
     std::fs::create_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
     let model = match model {
         Some(m) => m,
@@ -34,23 +38,51 @@ fn main() -> Result<(), String> {
     let b = camera.scene_box();
     println!("loaded {} (scene box {:?}..{:?})", model.display(), b.min.to_array(), b.max.to_array());
 
-    // Per frame: a pose from the robot's kinematics, the wrist camera's intrinsics, and a
-    // depth buffer the node owns.
-    let k = Intrinsics::from_fov_x(200, 200, 1.0);
-    let mut depth = vec![0.0f32; 200 * 200];
+    // Per frame: a pose from the robot's kinematics, the camera's intrinsics, and a depth
+    // buffer the node owns.
+    let cameras: Vec<(Intrinsics, Pose)> = match &data {
+        Some(dir) => {
+            let opts = LoadOptions { ground_truth: false, ..Default::default() };
+            let test = Dataset::load(dir, "test", &opts).map_err(|e| e.to_string())?;
+            test.views.iter().take(3).map(|v| (v.intrinsics, v.pose)).collect()
+        }
+        None => {
+            // 45° above the box's centre, a third of its diagonal away, all around.
+            let (centre, distance) = ((b.min + b.max) * 0.5, (b.max - b.min).length() / 3.0);
+            [0.3f32, 1.4, 2.6]
+                .into_iter()
+                .map(|azimuth| {
+                    let dir = glam::Vec3::new(azimuth.cos(), azimuth.sin(), 1.0).normalize();
+                    (Intrinsics::from_fov_x(200, 200, 1.0), Pose::look_at(centre + distance * dir, centre))
+                })
+                .collect()
+        }
+    };
     let request = DepthRequest { method: DepthMethod::default(), kind: DepthKind::Z };
-    // Cameras 45° above the box's centre, a third of its diagonal away, all around.
-    let (centre, distance) = ((b.min + b.max) * 0.5, (b.max - b.min).length() / 3.0);
-    for (i, azimuth) in [0.3f32, 1.4, 2.6].into_iter().enumerate() {
-        let dir = glam::Vec3::new(azimuth.cos(), azimuth.sin(), 1.0).normalize();
-        let pose = Pose::look_at(centre + distance * dir, centre);
-        let t = Instant::now();
-        camera.depth(&k, &pose, request, &mut depth)?;
-        let ms = t.elapsed().as_secs_f64() * 1e3;
+    let mut depth = Vec::new();
+    for (i, (k, pose)) in cameras.iter().enumerate() {
+        depth.resize((k.width * k.height) as usize, 0.0);
+        let mut ms: Vec<f64> = (0..5)
+            .map(|_| {
+                let t = Instant::now();
+                camera.depth(k, pose, request, &mut depth).map(|()| t.elapsed().as_secs_f64() * 1e3)
+            })
+            .collect::<Result<_, _>>()?;
+        let first = ms[0];
+        ms.sort_by(f64::total_cmp);
         let hits: Vec<f32> = depth.iter().copied().filter(|z| z.is_finite()).collect();
         let mean = hits.iter().sum::<f32>() / hits.len().max(1) as f32;
-        println!("view {i}: {ms:.1} ms, {} of {} pixels hit, mean z {mean:.3} m", hits.len(), depth.len());
-        write_view(&out, i, &depth, &k, &pose)?;
+        println!(
+            "view {i} ({}x{}): median {:.1} ms (first {first:.1}, range {:.1}-{:.1}), {} of {} pixels hit, mean z {mean:.3} m",
+            k.width,
+            k.height,
+            ms[2],
+            ms[0],
+            ms[4],
+            hits.len(),
+            depth.len()
+        );
+        write_view(&out, i, &depth, k, pose)?;
     }
     println!("wrote {}", out.display());
     Ok(())

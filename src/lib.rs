@@ -73,6 +73,7 @@ pub mod encoding;
 pub mod eval;
 pub mod field;
 pub mod io;
+pub mod memory;
 pub mod mlp;
 pub mod onboard;
 pub mod render;

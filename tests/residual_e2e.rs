@@ -10,7 +10,6 @@ use residual_nerf::field::mix::{DensityMix, MixKind};
 use residual_nerf::field::mixnet::MixnetEncoding;
 use residual_nerf::field::residual::ResidualConfig;
 use residual_nerf::render::view::{render_view, Scene};
-use residual_nerf::render::DensityThreshold;
 use residual_nerf::simd::Isa;
 use residual_nerf::train::trainer::{train_nerf, train_residual};
 
@@ -21,16 +20,16 @@ fn residual_nerf_beats_dex_nerf_in_the_glass_crop() {
     let bg_views = workspace::workspace(size, 24, 0.0, false);
     let scene_views = workspace::workspace(size, 24, 0.0, true);
     let test = workspace::workspace(size, 4, 0.37, true);
-    // The demo's small-scene settings: 300 steps × 512 rays, 12-level grid, 32³ occupancy.
+    // The demo's small-scene settings: 300 steps × 512 rays, 12-level grid, 32³ occupancy,
+    // random background colours, threshold σ ≥ 10/m.
     let demo = residual_nerf::app::demo_config(300, 0);
-    let (field, cfg) = (demo.field, demo.train);
+    let (field, cfg, m) = (demo.field, demo.train, demo.m);
     let t0 = std::time::Instant::now();
     let background = train_nerf(isa, &bg_views.views, field.clone(), &cfg, 0, |_| {}).expect("trains");
     let dex = train_nerf(isa, &scene_views.views, field.clone(), &cfg, 0, |_| {}).expect("trains");
     let config =
         ResidualConfig { residual: field, kind: MixKind::Mixnet(DensityMix::Raw), mixnet: MixnetEncoding::default() };
     let residual = train_residual(isa, background, &scene_views.views, config, &cfg, 0, |_| {}).expect("trains");
-    let m = DensityThreshold::Sigma(3.0);
     let (mut e_dex, mut e_res) = (DepthErrors::default(), DepthErrors::default());
     let mut beta_in = (0.0, 0);
     let mut beta_out = (0.0, 0);

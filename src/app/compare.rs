@@ -211,6 +211,9 @@ pub fn demo_config(steps: u32, seed: u64) -> CompareConfig {
     let mut train = TrainConfig::with_steps(steps);
     train.rays_per_step = 512;
     train.background = SKY;
+    // Every synthesised pixel shows a surface (no alpha): train over random background
+    // colours, as `rnerf train` does for such data, so the field turns opaque at surfaces.
+    train.random_background = true;
     train.seed = seed;
     train.occupancy = OccupancyConfig {
         resolution: 32,

@@ -4,18 +4,22 @@
 //! Limits are measured in the same run so ratios are meaningful on any machine: the fp32
 //! FMA peak ([`peak::fma_loop`]) for the MLP, and a bare random-gather loop over a table of
 //! the grid's size for the hash grid. The pipeline figures (`train_samples_per_s`,
-//! `render_depth_ms_200`, `occupancy_update_ms[_warmup]`) come from a short training run on the
+//! `train_residual_samples_per_s`, `render_depth_ms_200[_residual]`,
+//! `occupancy_update_ms[_warmup]`) come from a short training run on the
 //! synthetic workspace.
 
 pub mod peak;
 
 use crate::encoding::{HashGrid, HashGridConfig, HashGridParams};
+use crate::field::mix::{DensityMix, MixKind};
+use crate::field::mixnet::{default_mixnet_grid, MixnetEncoding};
+use crate::field::residual::ResidualConfig;
 use crate::field::NerfConfig;
 use crate::mlp::{Activation, Mlp, MlpConfig, MlpContext, MlpParams, MlpWorkspace};
 use crate::render::{DensityThreshold, Intrinsics, ViewRenderer};
 use crate::rng::Rng;
 use crate::simd::Isa;
-use crate::train::trainer::{train_nerf, TrainConfig};
+use crate::train::trainer::{train_nerf, train_residual, StepStats, TrainConfig};
 use crate::train::{Adam, AdamConfig};
 use crate::GradientMode;
 use std::hint::black_box;
@@ -325,7 +329,7 @@ pub fn run(opts: &BenchOptions) -> BenchReport {
     let pos = ray_coherent_positions(n, &mut rng);
     let mut enc = vec![0f32; n * grid.output_width()];
     let d_enc: Vec<f32> = (0..enc.len()).map(|_| rng.uniform(-1.0, 1.0)).collect();
-    let mut grads = vec![0f32; grid.n_params()];
+    let mut grads: Vec<f32> = crate::memory::zeroed_vec(grid.n_params());
     let ns = |v: Vec<f64>| v.iter().map(|s| s * 1e9 / n as f64).collect::<Vec<_>>();
     let pool1 = single_thread_pool();
     push(
@@ -372,8 +376,10 @@ pub fn run(opts: &BenchOptions) -> BenchReport {
 
     // The real pipeline: a full training step (march, prune, field forward/backward,
     // compositing, Adam, occupancy updates amortised) on the synthetic workspace at the default
-    // model size, measured over the last quarter of a short run; then threshold depth of one
-    // 200×200 view of the model that run produced (depth-only path).
+    // model size (random background colours, as `rnerf train` trains images without alpha),
+    // measured over the last quarter of a short run; then a residual model (Mixnet, own grid)
+    // over that background on the workspace with the glass sphere. Then threshold depth
+    // (σ ≥ 10/m, depth-only path) of one 200×200 view of each model.
     let scene = crate::data::workspace::workspace(64, 30, 0.0, false);
     let field = NerfConfig {
         grid: HashGridConfig { log2_table_size: opts.log2_table_size, ..Default::default() },
@@ -381,23 +387,43 @@ pub fn run(opts: &BenchOptions) -> BenchReport {
     };
     let mut cfg = TrainConfig::with_steps(scaled(160.0).max(8) as u32);
     cfg.rays_per_step = 2048;
+    cfg.random_background = true;
+    let rates = |log: &[StepStats]| -> (Vec<f64>, Vec<f64>) {
+        let w: Vec<&[StepStats]> = log[log.len() * 3 / 4..].windows(2).collect();
+        let dt = |w: &[StepStats]| w[1].seconds - w[0].seconds;
+        let rays = cfg.rays_per_step as f64;
+        (
+            w.iter().map(|w| w[1].samples_per_ray as f64 * rays / dt(w)).collect(),
+            w.iter().map(|w| rays / dt(w)).collect(),
+        )
+    };
     let mut log = Vec::new();
-    let nerf = train_nerf(isa, &scene.views, field, &cfg, 1, |s| log.push(s)).expect("the bench scene trains");
-    let from = log.len() * 3 / 4;
-    let rates: Vec<f64> = log[from..]
-        .windows(2)
-        .map(|w| w[1].samples_per_ray as f64 * cfg.rays_per_step as f64 / (w[1].seconds - w[0].seconds))
-        .collect();
-    push("train_samples_per_s", "samples/s", rates.clone());
-    let rays: Vec<f64> =
-        log[from..].windows(2).map(|w| cfg.rays_per_step as f64 / (w[1].seconds - w[0].seconds)).collect();
+    let nerf = train_nerf(isa, &scene.views, field.clone(), &cfg, 1, |s| log.push(s)).expect("the bench scene trains");
+    let (samples, rays) = rates(&log);
+    push("train_samples_per_s", "samples/s", samples);
     push("train_rays_per_s", "rays/s", rays);
+    let glass = crate::data::workspace::workspace(64, 30, 0.0, true);
+    let config = ResidualConfig {
+        residual: field,
+        kind: MixKind::Mixnet(DensityMix::Raw),
+        mixnet: MixnetEncoding::Own(default_mixnet_grid()),
+    };
+    let mut log = Vec::new();
+    let residual = train_residual(isa, nerf.clone(), &glass.views, config, &cfg, 1, |s| log.push(s))
+        .expect("the bench scene trains");
+    let (samples, rays) = rates(&log);
+    push("train_residual_samples_per_s", "samples/s", samples);
+    push("train_residual_rays_per_s", "rays/s", rays);
     let k = Intrinsics::from_fov_x(200, 200, 50f32.to_radians());
     let pose = scene.views[0].pose;
-    let mut renderer = ViewRenderer::new();
+    let m = DensityThreshold::Sigma(crate::cli::DEFAULT_M);
     let mut z = vec![0f32; 200 * 200];
-    let v = time_reps(reps, || renderer.depth(isa, &(&nerf).into(), &k, &pose, DensityThreshold::Sigma(3.0), &mut z));
+    let mut renderer = ViewRenderer::new();
+    let v = time_reps(reps, || renderer.depth(isa, &(&nerf).into(), &k, &pose, m, &mut z));
     push("render_depth_ms_200", "ms", v.iter().map(|s| s * 1e3).collect());
+    let mut renderer = ViewRenderer::new();
+    let v = time_reps(reps, || renderer.depth(isa, &residual.scene(), &k, &pose, m, &mut z));
+    push("render_depth_ms_200_residual", "ms", v.iter().map(|s| s * 1e3).collect());
     // Occupancy-grid updates of that model at the default 128³: a warm-up update evaluates
     // every cell, a later one ¼ random + ¼ occupied cells (DESIGN §2.5), all through the
     // density-only path on all threads.

@@ -137,7 +137,7 @@ impl Mixnet {
     /// Zeroed gradients.
     pub fn zero_grads(&self) -> MixnetGrads {
         let grid = self.grid.as_ref().map_or(0, |g| g.n_params());
-        MixnetGrads { grid: vec![0.0; grid], mlp: vec![0.0; self.mlp.n_params()] }
+        MixnetGrads { grid: crate::memory::zeroed_vec(grid), mlp: vec![0.0; self.mlp.n_params()] }
     }
 
     /// Logits `m` (β = sigmoid(m)) at world `positions`, saving what backward needs. With a

@@ -193,7 +193,7 @@ impl NerfField {
     /// Zeroed gradient buffers.
     pub fn zero_grads(&self) -> NerfGrads {
         NerfGrads {
-            grid: vec![0.0; self.grid.n_params()],
+            grid: crate::memory::zeroed_vec(self.grid.n_params()),
             density: vec![0.0; self.density.n_params()],
             colour: vec![0.0; self.colour.n_params()],
         }

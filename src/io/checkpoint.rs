@@ -4,7 +4,7 @@
 //! Beside the model's tensors ([`super::model`]):
 //! - `train.adam.{g}.m`, `train.adam.{g}.v` f32 `[n]`: Adam's moments of parameter group `g`
 //!   (in [`Model::groups`] order, padded MLP layouts included);
-//! - metadata `checkpoint`: `{"step", "skipped", "seconds", "adam_steps": [..], "fingerprint",
+//! - metadata `checkpoint`: `{"step", "skipped", "seconds", "prune", "adam_steps": [..], "fingerprint",
 //!   "train": {the TrainConfig}}`. `fingerprint` hashes the training views (poses, intrinsics,
 //!   pixels): a checkpoint resumes only on the data it was trained on.
 
@@ -32,6 +32,8 @@ pub struct Checkpoint {
     pub fingerprint: u64,
     /// Adam's first and second moments and step count per parameter group.
     pub moments: Vec<(Vec<f32>, Vec<f32>, u32)>,
+    /// Whether the next step runs the pruning pass ([`TrainState::prune`]).
+    pub prune: bool,
 }
 
 impl Checkpoint {
@@ -63,7 +65,15 @@ impl Checkpoint {
         }
         drop(groups);
         model.after_step(&mut params); // groups() lent the weights out mutably
-        Ok(TrainState { step: self.step, params, occupancy, adams, skipped: self.skipped, seconds: self.seconds })
+        Ok(TrainState {
+            step: self.step,
+            params,
+            occupancy,
+            adams,
+            skipped: self.skipped,
+            seconds: self.seconds,
+            prune: self.prune,
+        })
     }
 }
 
@@ -114,6 +124,7 @@ pub fn save_checkpoint<M: ModelFile>(
         "step": state.step,
         "skipped": state.skipped,
         "seconds": state.seconds,
+        "prune": state.prune,
         "adam_steps": state.adams.iter().map(Adam::steps).collect::<Vec<_>>(),
         "fingerprint": format!("{fingerprint:016x}"),
         "train": train_config_json(config),
@@ -149,6 +160,7 @@ fn read_checkpoint(r: &ModelReader, occupancy: OccupancyConfig) -> Result<Checkp
     let step = u32_of("step")?;
     let skipped = u32_of("skipped")?;
     let seconds = v.get("seconds").and_then(Value::as_f64).filter(|s| s.is_finite()).ok_or_else(|| field("seconds"))?;
+    let prune = v.get("prune").and_then(Value::as_bool).ok_or_else(|| field("prune"))?;
     let fingerprint = v
         .get("fingerprint")
         .and_then(Value::as_str)
@@ -170,7 +182,7 @@ fn read_checkpoint(r: &ModelReader, occupancy: OccupancyConfig) -> Result<Checkp
         }
         moments.push((m, v, t));
     }
-    Ok(Checkpoint { step, skipped, seconds, config, fingerprint, moments })
+    Ok(Checkpoint { step, skipped, seconds, config, fingerprint, moments, prune })
 }
 
 /// A one-dimensional f32 tensor of any length.

@@ -182,6 +182,29 @@ pub fn march_rays(
     }
 }
 
+/// Samples per ray up to its opaque point (the samples [`composite_ray`] uses), given the
+/// densities `sigma` of `samples`, summed over the rays.
+fn count_until_opaque(samples: &PackedSamples, sigma: &[f32]) -> usize {
+    let mut kept = 0;
+    for &(s0, count) in &samples.rays {
+        let mut acc = RayAccumulator::new();
+        for i in s0 as usize..(s0 + count) as usize {
+            if acc.is_opaque() {
+                break;
+            }
+            acc.push(sigma[i], samples.delta[i], 0.0, [0.0; 3]);
+            kept += 1;
+        }
+    }
+    kept
+}
+
+/// The pruning pass pays (one density-only evaluation of every marched sample, ~⅓ of a full
+/// sample's cost) only when it drops more than this fraction of the samples; otherwise the
+/// next step sends every marched sample through the full forward/backward (the dropped ones
+/// would get zero gradients anyway).
+pub const PRUNE_WHEN_DROPPING: f32 = 0.3;
+
 /// Copies each ray's samples of `marched` up to its opaque point — the samples
 /// [`composite_ray`] uses, given densities `sigma` — into `out`, `positions`, `dirs`.
 fn keep_until_opaque(
@@ -357,6 +380,9 @@ pub struct TrainState<P> {
     pub skipped: u32,
     /// Seconds spent training so far (informational; not part of the bits).
     pub seconds: f64,
+    /// Whether the next step runs the pruning pass (decided from this step's share of
+    /// samples past the opaque point; [`PRUNE_WHEN_DROPPING`]).
+    pub prune: bool,
 }
 
 /// A training run, one [`Trainer::step`] at a time: the caller decides between steps whether
@@ -388,7 +414,7 @@ impl<'a, M: Model> Trainer<'a, M> {
             .collect();
         model.after_step(&mut params);
         let occupancy = OccupancyGrid::new(aabb, cfg.occupancy.clone());
-        let state = TrainState { step: 0, params, occupancy, adams, skipped: 0, seconds: 0.0 };
+        let state = TrainState { step: 0, params, occupancy, adams, skipped: 0, seconds: 0.0, prune: true };
         Self::from_state(isa, model, views, cfg, state).expect("a fresh state fits its model")
     }
 
@@ -490,28 +516,37 @@ impl<'a, M: Model> Trainer<'a, M> {
         // 2. March; drop the samples behind each ray's opaque point (T < 1e-4): a density-only
         //    pass finds them; compositing ignores them anyway, so the result is unchanged and
         //    the full forward/backward runs on the samples that matter (nerfacc's early stop).
+        //    When the last step showed the pass would drop few samples, skip it.
         march_rays(occupancy, &buf.rays, &mut buf.marched, &mut buf.marched_pos, &mut buf.marched_dirs);
         let marched = buf.marched.len();
         *empty_in_a_row = if marched == 0 { *empty_in_a_row + 1 } else { 0 };
         if *empty_in_a_row >= MAX_EMPTY_STEPS_IN_A_ROW {
             return Err(TrainError::NoLiveSamples { step, aabb: *occupancy.aabb(), occupancy: occupancy.occupancy() });
         }
-        buf.sigma.resize(marched, 0.0);
-        model.density(isa, params, &buf.marched_pos, &mut buf.sigma, ctx);
-        keep_until_opaque(
-            &buf.marched,
-            &buf.marched_pos,
-            &buf.marched_dirs,
-            &buf.sigma,
-            &mut buf.samples,
-            &mut buf.positions,
-            &mut buf.dirs,
-        );
+        if state.prune {
+            buf.sigma.resize(marched, 0.0);
+            model.density(isa, params, &buf.marched_pos, &mut buf.sigma, ctx);
+            keep_until_opaque(
+                &buf.marched,
+                &buf.marched_pos,
+                &buf.marched_dirs,
+                &buf.sigma,
+                &mut buf.samples,
+                &mut buf.positions,
+                &mut buf.dirs,
+            );
+        } else {
+            std::mem::swap(&mut buf.samples, &mut buf.marched);
+            std::mem::swap(&mut buf.positions, &mut buf.marched_pos);
+            std::mem::swap(&mut buf.dirs, &mut buf.marched_dirs);
+        }
         // 3. Forward: activated density and colour per sample.
         let n = buf.positions.len();
         buf.sigma.resize(n, 0.0);
         buf.rgb.resize(n, [0.0; 3]);
         model.forward(isa, params, &buf.positions, &buf.dirs, &mut buf.sigma, &mut buf.rgb, ctx);
+        let kept = if state.prune { n } else { count_until_opaque(&buf.samples, &buf.sigma) };
+        state.prune = (kept as f32) < (1.0 - PRUNE_WHEN_DROPPING) * marched as f32;
         // 4. Composite, loss, and back through compositing.
         let loss = composite_and_loss_backward(cfg, buf);
         // 5. Backward through the model; a non-finite loss or gradient skips the step (the

@@ -300,13 +300,20 @@ impl Soa {
 }
 
 /// Trainable hash-grid parameters: the fp32 master copy the optimiser updates and the fp16
-/// mirror (packed pairs) the kernels read.
-#[derive(Clone, Debug, PartialEq)]
+/// mirror (packed pairs) the kernels read. The mirror, gathered at random, lives in huge pages
+/// where the OS offers them ([`crate::memory`]).
+#[derive(Debug, PartialEq)]
 pub struct HashGridParams {
     /// fp32 master weights, `2 · entries` floats (entry-major pairs).
     pub master: Vec<f32>,
     /// fp16 mirror: one `u32` per entry, feature 0 in the low 16 bits.
     pub table: Vec<u32>,
+}
+
+impl Clone for HashGridParams {
+    fn clone(&self) -> Self {
+        HashGridParams { master: self.master.clone(), table: crate::memory::copied_vec(&self.table) }
+    }
 }
 
 impl HashGridParams {
@@ -319,7 +326,7 @@ impl HashGridParams {
     /// Parameters from given master weights (the mirror is derived).
     pub fn from_master(master: Vec<f32>) -> HashGridParams {
         assert!(master.len().is_multiple_of(2), "hash grid parameters come in pairs");
-        let mut p = HashGridParams { table: vec![0; master.len() / 2], master };
+        let mut p = HashGridParams { table: crate::memory::zeroed_vec(master.len() / 2), master };
         p.sync_mirror();
         p
     }
