@@ -33,8 +33,11 @@ fn main() -> Result<(), String> {
         None => train_small_model(&out)?,
     };
 
-    // Once, at start-up: load the model and size the renderer's thread pool.
+    // Once, at start-up: load the model and size the renderer's thread pool. (A second,
+    // exact renderer — every occupied cell marched — is only here to show what the default's
+    // cell skipping changes.)
     let mut camera = DepthRenderer::load(&model)?.with_threads(2)?;
+    let mut exact = DepthRenderer::load(&model)?.with_threads(2)?.exact(true);
     let b = camera.scene_box();
     println!("loaded {} (scene box {:?}..{:?})", model.display(), b.min.to_array(), b.max.to_array());
 
@@ -59,17 +62,39 @@ fn main() -> Result<(), String> {
         }
     };
     let request = DepthRequest { method: DepthMethod::default(), kind: DepthKind::Z };
-    let mut depth = Vec::new();
+    let (mut depth, mut reference) = (Vec::new(), Vec::new());
     for (i, (k, pose)) in cameras.iter().enumerate() {
         depth.resize((k.width * k.height) as usize, 0.0);
-        let mut ms: Vec<f64> = (0..5)
-            .map(|_| {
-                let t = Instant::now();
-                camera.depth(k, pose, request, &mut depth).map(|()| t.elapsed().as_secs_f64() * 1e3)
-            })
-            .collect::<Result<_, _>>()?;
-        let first = ms[0];
-        ms.sort_by(f64::total_cmp);
+        reference.resize(depth.len(), 0.0);
+        let time = |cam: &mut DepthRenderer, out: &mut [f32]| -> Result<(f64, Vec<f64>), String> {
+            let mut ms: Vec<f64> = (0..5)
+                .map(|_| {
+                    let t = Instant::now();
+                    cam.depth(k, pose, request, out).map(|()| t.elapsed().as_secs_f64() * 1e3)
+                })
+                .collect::<Result<_, _>>()?;
+            let first = ms[0];
+            ms.sort_by(f64::total_cmp);
+            Ok((first, ms))
+        };
+        let (_, exact_ms) = time(&mut exact, &mut reference)?;
+        let (first, ms) = time(&mut camera, &mut depth)?;
+        let same_hole = depth.iter().zip(&reference).filter(|(a, b)| a.is_nan() != b.is_nan()).count();
+        let diffs: Vec<f32> = depth
+            .iter()
+            .zip(&reference)
+            .filter(|(a, b)| a.is_finite() && b.is_finite())
+            .map(|(a, b)| (a - b).abs())
+            .collect();
+        let over_1cm = diffs.iter().filter(|&&d| d > 0.01).count();
+        let mean_diff = diffs.iter().sum::<f32>() / diffs.len().max(1) as f32;
+        println!(
+            "view {i}: exact marching median {:.1} ms; vs exact: {} pixels differ in hole/hit, {} by more than 1 cm, mean |dz| {:.4} m",
+            exact_ms[2],
+            same_hole,
+            over_1cm,
+            mean_diff
+        );
         let hits: Vec<f32> = depth.iter().copied().filter(|z| z.is_finite()).collect();
         let mean = hits.iter().sum::<f32>() / hits.len().max(1) as f32;
         println!(

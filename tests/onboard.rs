@@ -42,8 +42,8 @@ fn depth_matches_the_renderer_in_both_conventions_on_any_thread_count() {
     let nerf = trained();
     let isa = Isa::detect();
     let mut reference = ViewRenderer::new();
-    let mut one = DepthRenderer::new(LoadedModel::Nerf(Box::new(nerf.clone()))).with_threads(1).unwrap();
-    let mut two = DepthRenderer::new(LoadedModel::Nerf(Box::new(nerf.clone()))).with_threads(2).unwrap();
+    let mut one = DepthRenderer::new(LoadedModel::Nerf(Box::new(nerf.clone()))).with_threads(1).unwrap().exact(true);
+    let mut two = DepthRenderer::new(LoadedModel::Nerf(Box::new(nerf.clone()))).with_threads(2).unwrap().exact(true);
     let z_req = DepthRequest { method: DepthMethod::Threshold(M), kind: DepthKind::Z };
     let range_req = DepthRequest { kind: DepthKind::Range, ..z_req };
     for (k, pose) in cameras() {
@@ -73,6 +73,25 @@ fn depth_matches_the_renderer_in_both_conventions_on_any_thread_count() {
             }
         }
     }
+}
+
+#[test]
+fn skipping_cells_below_the_threshold_keeps_the_depth() {
+    let nerf = trained();
+    let mut exact = DepthRenderer::new(LoadedModel::Nerf(Box::new(nerf.clone()))).exact(true);
+    let mut fast = DepthRenderer::new(LoadedModel::Nerf(Box::new(nerf.clone())));
+    let cell = (nerf.field.config().aabb.size() / nerf.occupancy.config().resolution as f32).max_element();
+    let req = DepthRequest { method: DepthMethod::Threshold(M), kind: DepthKind::Z };
+    let (mut pixels, mut close) = (0, 0);
+    for (k, pose) in cameras() {
+        let n = (k.width * k.height) as usize;
+        let (mut a, mut b) = (vec![0.0; n], vec![0.0; n]);
+        exact.depth(&k, &pose, req, &mut a).unwrap();
+        fast.depth(&k, &pose, req, &mut b).unwrap();
+        pixels += n;
+        close += a.iter().zip(&b).filter(|(a, b)| (a.is_nan() && b.is_nan()) || (*a - *b).abs() <= cell).count();
+    }
+    assert!(close as f64 >= 0.95 * pixels as f64, "only {close} of {pixels} pixels within a cell ({cell} m) of exact");
 }
 
 #[test]

@@ -288,7 +288,11 @@ pub fn run(opts: &BenchOptions) -> BenchReport {
     let threads = rayon::current_num_threads();
     let scaled = |n: f64| ((n * opts.scale).round() as usize).max(1);
     let mut figures = Vec::new();
-    let mut push = |name: &str, unit: &'static str, v: Vec<f64>| figures.push((name.to_string(), unit, Stat::of(v)));
+    let t0 = Instant::now();
+    let mut push = |name: &str, unit: &'static str, v: Vec<f64>| {
+        eprintln!("rnerf bench: {name} ({:.0} s)", t0.elapsed().as_secs_f64());
+        figures.push((name.to_string(), unit, Stat::of(v)))
+    };
 
     // fp32 FMA peak, 1 thread and all threads.
     let iters = scaled(4e7) as u64;
@@ -317,6 +321,8 @@ pub fn run(opts: &BenchOptions) -> BenchReport {
         })
     });
     push("mlp_fwd_bwd_gflops", "GFLOP/s", v.iter().map(|s| flops * threads as f64 / s / 1e9).collect());
+    let samples = (calls * MlpBench::BATCH * threads) as f64;
+    push("mlp_fwd_bwd_samples_per_s", "samples/s", v.iter().map(|s| samples / s).collect());
 
     // Hash grid at the requested table size: 1 thread and all threads, ray-coherent samples.
     let grid = HashGrid::new(HashGridConfig { log2_table_size: opts.log2_table_size, ..Default::default() });
@@ -385,8 +391,8 @@ pub fn run(opts: &BenchOptions) -> BenchReport {
         grid: HashGridConfig { log2_table_size: opts.log2_table_size, ..Default::default() },
         aabb: scene.aabb,
     };
-    let mut cfg = TrainConfig::with_steps(scaled(160.0).max(8) as u32);
-    cfg.rays_per_step = 2048;
+    let mut cfg = TrainConfig::with_steps(scaled(120.0).max(8) as u32);
+    cfg.rays_per_step = crate::app::TRAIN_RAYS;
     cfg.random_background = true;
     let rates = |log: &[StepStats]| -> (Vec<f64>, Vec<f64>) {
         let w: Vec<&[StepStats]> = log[log.len() * 3 / 4..].windows(2).collect();
@@ -408,8 +414,9 @@ pub fn run(opts: &BenchOptions) -> BenchReport {
         kind: MixKind::Mixnet(DensityMix::Raw),
         mixnet: MixnetEncoding::Own(default_mixnet_grid()),
     };
+    let residual_cfg = TrainConfig { steps: scaled(60.0).max(8) as u32, ..cfg.clone() };
     let mut log = Vec::new();
-    let residual = train_residual(isa, nerf.clone(), &glass.views, config, &cfg, 1, |s| log.push(s))
+    let residual = train_residual(isa, nerf.clone(), &glass.views, config, &residual_cfg, 1, |s| log.push(s))
         .expect("the bench scene trains");
     let (samples, rays) = rates(&log);
     push("train_residual_samples_per_s", "samples/s", samples);
@@ -441,11 +448,26 @@ pub fn run(opts: &BenchOptions) -> BenchReport {
 
     let mut report =
         BenchReport { cpu_level: isa.to_string(), threads, log2_table_size: opts.log2_table_size, figures };
+    // The pipeline's own roofline: one training sample's three kernels (grid forward, MLP
+    // forward + backward, grid backward) at their measured all-thread rates (medians); what a
+    // step adds (marching, compositing, the pruning pass, Adam, occupancy updates) is overhead
+    // on it.
+    let ns = |name: &str| report.get(name).unwrap_or(f64::NAN);
+    let bound = 1e9
+        / (1e9 / ns("mlp_fwd_bwd_samples_per_s")
+            + ns("hash_grid_fwd_ns_per_sample")
+            + ns("hash_grid_bwd_ns_per_sample"));
+    report.figures.push((
+        "train_kernel_bound_samples_per_s".to_string(),
+        "samples/s",
+        Stat { median: bound, min: bound, max: bound },
+    ));
     // Derived ratios (from medians).
     let ratio = |a: &str, b: &str, r: &BenchReport| r.get(a).zip(r.get(b)).map(|(a, b)| a / b).unwrap_or(f64::NAN);
     let derived = [
         ("mlp_fraction_of_fma_peak_1t", ratio("mlp_fwd_bwd_gflops_1t", "fma_peak_gflops_1t", &report)),
         ("mlp_thread_scaling", ratio("mlp_fwd_bwd_gflops", "mlp_fwd_bwd_gflops_1t", &report)),
+        ("train_fraction_of_kernel_bound", ratio("train_samples_per_s", "train_kernel_bound_samples_per_s", &report)),
         (
             "hash_grid_fwd_bwd_over_gather_limit_1t",
             (report.get("hash_grid_fwd_ns_per_sample_1t").unwrap()

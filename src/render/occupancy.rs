@@ -236,6 +236,20 @@ impl OccupancyGrid {
         }
     }
 
+    /// A copy in which a cell stays occupied only if its value (the largest `σ·δ_min` seen at
+    /// its sampled points, decayed) also reaches `min_value`: for threshold depth at σ ≥ m,
+    /// cells that never showed a density near m are marched over without evaluating the field.
+    /// An approximation (a cell's value is sampled, not its true maximum).
+    pub fn keep_at_least(&self, min_value: f32) -> OccupancyGrid {
+        let mut g = self.clone();
+        for (i, &v) in self.values.iter().enumerate() {
+            if v < min_value {
+                g.bits[i / 64] &= !(1u64 << (i % 64));
+            }
+        }
+        g
+    }
+
     /// The settings.
     pub fn config(&self) -> &OccupancyConfig {
         &self.config
