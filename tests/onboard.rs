@@ -3,28 +3,19 @@
 //! count, extras from one pass, wrong buffers refused without a panic (no allocation per frame:
 //! `tests/onboard_alloc.rs`); and the PLY export puts each point where its depth says, in the world.
 
+mod common;
+
 use glam::Vec3;
 use residual_nerf::data::synth;
-use residual_nerf::encoding::HashGridConfig;
-use residual_nerf::field::{Nerf, NerfConfig};
+use residual_nerf::field::Nerf;
 use residual_nerf::io::export::depth_ply_bytes;
 use residual_nerf::io::LoadedModel;
 use residual_nerf::onboard::{DepthKind, DepthMethod, DepthRenderer, DepthRequest, Extras};
-use residual_nerf::render::{pixel_ray, DensityThreshold, Intrinsics, OccupancyConfig, Pose, ViewRenderer};
+use residual_nerf::render::{pixel_ray, DensityThreshold, Intrinsics, Pose, ViewRenderer};
 use residual_nerf::simd::Isa;
-use residual_nerf::train::trainer::{train_nerf, TrainConfig};
 
 fn trained() -> Nerf {
-    let scene = synth::tabletop(16, 12, 0.0);
-    let field = NerfConfig {
-        grid: HashGridConfig { levels: 8, log2_table_size: 12, base_resolution: 4, finest_resolution: 64 },
-        aabb: scene.aabb,
-    };
-    let mut cfg = TrainConfig::with_steps(40);
-    cfg.rays_per_step = 512;
-    cfg.background = synth::SKY;
-    cfg.occupancy = OccupancyConfig { resolution: 16, steps_per_diagonal: 128, warmup_steps: 16, ..Default::default() };
-    train_nerf(Isa::detect(), &scene.views, field, &cfg, 0, |_| {}).expect("trains")
+    common::trained_tabletop()
 }
 
 fn cameras() -> Vec<(Intrinsics, Pose)> {

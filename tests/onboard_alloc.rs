@@ -2,14 +2,12 @@
 //! around three frames of several views (its own test binary, so no other test allocates
 //! meanwhile).
 
+mod common;
+
 use residual_nerf::data::synth;
-use residual_nerf::encoding::HashGridConfig;
-use residual_nerf::field::{Nerf, NerfConfig};
+use residual_nerf::field::Nerf;
 use residual_nerf::io::LoadedModel;
 use residual_nerf::onboard::{DepthRenderer, DepthRequest, Extras};
-use residual_nerf::render::OccupancyConfig;
-use residual_nerf::simd::Isa;
-use residual_nerf::train::trainer::{train_nerf, TrainConfig};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -37,16 +35,7 @@ unsafe impl GlobalAlloc for Counting {
 static GLOBAL: Counting = Counting;
 
 fn trained() -> Nerf {
-    let scene = synth::tabletop(16, 12, 0.0);
-    let field = NerfConfig {
-        grid: HashGridConfig { levels: 8, log2_table_size: 12, base_resolution: 4, finest_resolution: 64 },
-        aabb: scene.aabb,
-    };
-    let mut cfg = TrainConfig::with_steps(40);
-    cfg.rays_per_step = 512;
-    cfg.background = synth::SKY;
-    cfg.occupancy = OccupancyConfig { resolution: 16, steps_per_diagonal: 128, warmup_steps: 16, ..Default::default() };
-    train_nerf(Isa::detect(), &scene.views, field, &cfg, 0, |_| {}).expect("trains")
+    common::trained_tabletop()
 }
 
 #[test]

@@ -113,3 +113,23 @@ pub fn assert_close(a: &[f32], b: &[f32], atol: f32, rtol: f32, what: &str) {
         assert!((x - y).abs() <= atol + rtol * y.abs(), "{what}[{i}]: {x} vs {y} (atol {atol}, rtol {rtol})");
     }
 }
+
+/// A small NeRF of the synthesised tabletop (12 views of 16×16, 40 steps × 512 rays, 8-level
+/// grid with log2T = 12): a trained model for rendering tests, a few seconds to make.
+pub fn trained_tabletop() -> residual_nerf::field::Nerf {
+    use residual_nerf::data::synth;
+    use residual_nerf::encoding::HashGridConfig;
+    use residual_nerf::field::NerfConfig;
+    use residual_nerf::render::OccupancyConfig;
+    use residual_nerf::train::trainer::{train_nerf, TrainConfig};
+    let scene = synth::tabletop(16, 12, 0.0);
+    let field = NerfConfig {
+        grid: HashGridConfig { levels: 8, log2_table_size: 12, base_resolution: 4, finest_resolution: 64 },
+        aabb: scene.aabb,
+    };
+    let mut cfg = TrainConfig::with_steps(40);
+    cfg.rays_per_step = 512;
+    cfg.background = synth::SKY;
+    cfg.occupancy = OccupancyConfig { resolution: 16, steps_per_diagonal: 128, warmup_steps: 16, ..Default::default() };
+    train_nerf(residual_nerf::simd::Isa::detect(), &scene.views, field, &cfg, 0, |_| {}).expect("trains")
+}
