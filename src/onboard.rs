@@ -246,10 +246,7 @@ fn draw<M: crate::train::model::Model>(
     depth: &mut [f32],
     extras: Extras<'_>,
 ) {
-    let (m, expected) = match request.method {
-        DepthMethod::Threshold(m) => (m, false),
-        DepthMethod::Expected => (DepthMethod::default().threshold(), true),
-    };
+    let (m, expected) = (request.method.threshold(), request.method == DepthMethod::Expected);
     if !expected && extras.rgb.is_none() && extras.beta.is_none() {
         renderer.depth(isa, scene, k, pose, m, depth);
         return;

@@ -248,9 +248,12 @@ fn drive<M: ModelFile>(
     extra: &[(&str, String)],
 ) -> Result<(), Failure> {
     let signal = Arc::new(AtomicUsize::new(0));
+    let seen = Arc::new(AtomicBool::new(false));
     for sig in [SIGINT, SIGTERM] {
-        // A second signal while the checkpoint is written ends the process at once.
-        signal_hook::flag::register_conditional_shutdown(sig, 128 + sig, Arc::new(AtomicBool::new(false)))
+        // Handlers run in registration order: a signal after one was already seen (e.g. while
+        // the checkpoint is written) ends the process at once; the first only marks it.
+        signal_hook::flag::register_conditional_shutdown(sig, 128 + sig, seen.clone())
+            .and_then(|_| signal_hook::flag::register(sig, seen.clone()))
             .and_then(|_| signal_hook::flag::register_usize(sig, signal.clone(), sig as usize))
             .map_err(|e| format!("cannot install the signal handler: {e}"))?;
     }

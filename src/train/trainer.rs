@@ -559,13 +559,14 @@ impl<'a, M: Model> Trainer<'a, M> {
             for (adam, g) in state.adams.iter_mut().zip(model.groups(params, grads)) {
                 adam.step(isa, lr, g.master, g.grad, g.mirror);
             }
-            model.after_step(params);
             *bad_in_a_row = 0;
         } else {
-            model.after_step(params); // groups() lent the (unchanged) weights out mutably
             state.skipped += 1;
             *bad_in_a_row += 1;
         }
+        // Re-derive the MLPs' transposed copies: Adam changed the weights, or (skipped step)
+        // groups() lent them out mutably.
+        model.after_step(params);
         state.step += 1;
         if *bad_in_a_row >= MAX_BAD_STEPS_IN_A_ROW {
             return Err(TrainError::NonFinite { step, skipped: state.skipped });
