@@ -71,7 +71,8 @@ pub struct Extras<'a> {
 }
 
 /// Threshold depth at σ ≥ m marches only over cells whose occupancy value showed at least
-/// this fraction of m ([`OccupancyGrid::keep_at_least`]; [`DepthRenderer::exact`] turns it off).
+/// this fraction of m ([`OccupancyGrid::keep_at_least`]) by default; see
+/// [`DepthRenderer::solid_fraction`] for the trade (measured in README).
 pub const SOLID_FRACTION: f32 = 0.25;
 
 /// A loaded model (plain NeRF or residual) and the reusable buffers to render it.
@@ -81,9 +82,10 @@ pub struct DepthRenderer {
     residual: ViewRenderer<ResidualField>,
     pool: Option<rayon::ThreadPool>,
     isa: Isa,
-    /// The occupancy grid thinned for the last threshold asked for (built once per threshold).
+    /// The occupancy grid thinned for the last threshold asked for, keyed by the minimum
+    /// cell value it keeps (built once per threshold).
     solid: Option<(f32, OccupancyGrid)>,
-    exact: bool,
+    solid_fraction: f32,
     /// Colour behind the scene for [`Extras::rgb`]. Defaults to white.
     pub background: [f32; 3],
 }
@@ -104,18 +106,30 @@ impl DepthRenderer {
             pool: None,
             isa: Isa::detect(),
             solid: None,
-            exact: false,
+            solid_fraction: SOLID_FRACTION,
             background: [1.0; 3],
         }
     }
 
     /// `true`: threshold depth marches every occupied cell, as training and evaluation do
-    /// (the same bits as [`ViewRenderer::depth`]); `false` (the default): cells whose
-    /// occupancy value never reached [`SOLID_FRACTION`] of the threshold are skipped —
-    /// several times faster on trained models, and an approximation (measured in README).
+    /// (the same bits as [`ViewRenderer::depth`]; `solid_fraction(0.0)`); `false` (the
+    /// default): `solid_fraction(SOLID_FRACTION)`.
     pub fn exact(mut self, exact: bool) -> DepthRenderer {
-        self.exact = exact;
+        self.solid_fraction = if exact { 0.0 } else { SOLID_FRACTION };
         self
+    }
+
+    /// Threshold depth at σ ≥ m skips the occupied cells whose occupancy value (the largest
+    /// σ·δ training saw there) stayed below `fraction · m · δ`. 0 marches every occupied
+    /// cell (exact); larger values are faster and miss more: a cell's value is a sampled
+    /// estimate, so a surface inside a cell can be denser than training saw. Measured on the
+    /// dev models in README ("On the robot"); the default is [`SOLID_FRACTION`].
+    pub fn solid_fraction(mut self, fraction: f32) -> Result<DepthRenderer, String> {
+        if !(fraction.is_finite() && fraction >= 0.0) {
+            return Err(format!("solid fraction {fraction} is not a number >= 0"));
+        }
+        self.solid_fraction = fraction;
+        Ok(self)
     }
 
     /// Renders on a pool of its own with `threads` threads (1 keeps all work on the calling
@@ -189,9 +203,10 @@ impl DepthRenderer {
         let (isa, background) = (self.isa, self.background);
         let depth_only = extras.rgb.is_none() && extras.beta.is_none();
         let fast = match request.method {
-            DepthMethod::Threshold(m) if depth_only && !self.exact => Some(m.min_sigma()),
+            DepthMethod::Threshold(m) if depth_only && self.solid_fraction > 0.0 => Some(m.min_sigma()),
             _ => None,
         };
+        let fraction = self.solid_fraction;
         let DepthRenderer { model, nerf, residual, pool, solid, .. } = self;
         let model = &*model;
         let occupancy = match model {
@@ -200,9 +215,9 @@ impl DepthRenderer {
         };
         let grid = match fast {
             Some(min_sigma) => {
-                if solid.as_ref().is_none_or(|(s, _)| *s != min_sigma) {
-                    let min_value = SOLID_FRACTION * min_sigma * occupancy.step_size();
-                    *solid = Some((min_sigma, occupancy.keep_at_least(min_value)));
+                let min_value = fraction * min_sigma * occupancy.step_size();
+                if solid.as_ref().is_none_or(|(v, _)| *v != min_value) {
+                    *solid = Some((min_value, occupancy.keep_at_least(min_value)));
                 }
                 &solid.as_ref().expect("built above").1
             }

@@ -86,6 +86,26 @@ fn skipping_cells_below_the_threshold_keeps_the_depth() {
 }
 
 #[test]
+fn solid_fraction_zero_is_exact_and_bad_fractions_are_refused() {
+    let nerf = trained();
+    let new = || DepthRenderer::new(LoadedModel::Nerf(Box::new(nerf.clone())));
+    let mut exact = new().exact(true);
+    let mut zero = new().solid_fraction(0.0).unwrap();
+    let req = DepthRequest { method: DepthMethod::Threshold(M), kind: DepthKind::Z };
+    for (k, pose) in cameras() {
+        let n = (k.width * k.height) as usize;
+        let (mut a, mut b) = (vec![0.0; n], vec![0.0; n]);
+        exact.depth(&k, &pose, req, &mut a).unwrap();
+        zero.depth(&k, &pose, req, &mut b).unwrap();
+        assert_eq!(bits(&a), bits(&b));
+    }
+    for bad in [-0.1, f32::NAN, f32::INFINITY] {
+        let e = new().solid_fraction(bad).err().expect("refused");
+        assert!(e.contains("solid fraction"), "{e}");
+    }
+}
+
+#[test]
 fn expected_depth_rgb_and_beta_come_from_one_full_pass() {
     let nerf = trained();
     let isa = Isa::detect();

@@ -113,13 +113,21 @@ impl PackedSamples {
     }
 }
 
-/// Entry and exit distance of a ray through the scene box.
+/// Entry and exit distance of a ray through the scene box, and its marching lattice: step
+/// `k` covers `[near + k·δ, near + (k+1)·δ)`, its sample sits at the midpoint.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RaySpan {
     /// Entry (≥ 0).
     pub near: f32,
     /// Exit.
     pub far: f32,
+    /// Lattice steps starting before `far`.
+    pub steps: u32,
+}
+
+impl RaySpan {
+    /// A ray that misses the box (no steps).
+    pub const EMPTY: RaySpan = RaySpan { near: 0.0, far: 0.0, steps: 0 };
 }
 
 /// The grid: per-cell optical thickness and the occupancy bitfield.
@@ -170,9 +178,7 @@ impl OccupancyGrid {
 
     /// Index of the cell holding unit-cube point `u` (clamped into the grid).
     fn cell_of(&self, u: Vec3) -> usize {
-        let r = self.config.resolution;
-        let c = (u * r as f32).floor().clamp(Vec3::ZERO, Vec3::splat((r - 1) as f32)).as_uvec3();
-        (c.x + r * (c.y + r * c.z)) as usize
+        self.index_of_cell(floor3(u * self.config.resolution as f32))
     }
 
     /// Whether the cell holding world point `p` is occupied.
@@ -280,8 +286,9 @@ impl OccupancyGrid {
                 origin,
                 dir,
                 span,
-                span.near,
+                0..span.steps,
                 self.config.max_samples as usize,
+                1,
                 &mut out.t,
                 &mut out.delta,
             );
@@ -293,56 +300,131 @@ impl OccupancyGrid {
     pub fn span(&self, origin: Vec3, dir: Vec3) -> Option<RaySpan> {
         let (near, far) = self.aabb.intersect(origin, dir)?;
         let near = near.max(self.config.near);
-        (near < far).then_some(RaySpan { near, far })
+        let steps = ((far - near) / self.step_size).ceil().min(u32::MAX as f32) as u32;
+        (near < far).then_some(RaySpan { near, far, steps })
     }
 
-    /// Appends up to `max` samples of a ray from lattice point `t` (the span's `near`, or what a
-    /// previous segment returned) to `ts`/`deltas`; returns where the next segment starts
-    /// (`≥ span.far` once the ray is done). Segments concatenate to exactly [`Self::march`]'s samples.
+    /// Appends the samples of the occupied lattice steps among `steps` (a range of the span's
+    /// lattice), at most `max`, taking one every `stride` steps (1: every step, as
+    /// [`Self::march`]), to `ts`/`deltas`; returns the step to continue from (`≥ steps.end`
+    /// once the range is done). Segments of stride 1 concatenate to exactly
+    /// [`Self::march`]'s samples, and a sample's `t` depends only on its step.
     #[allow(clippy::too_many_arguments)]
     pub fn march_segment(
         &self,
         origin: Vec3,
         dir: Vec3,
         span: RaySpan,
-        mut t: f32,
+        steps: std::ops::Range<u32>,
         max: usize,
+        stride: u32,
         ts: &mut Vec<f32>,
         deltas: &mut Vec<f32>,
-    ) -> f32 {
-        let r = self.config.resolution as f32;
+    ) -> u32 {
+        let res = self.config.resolution as i32;
+        let r = res as f32;
         let dt = self.step_size;
-        let (near, far) = (span.near, span.far);
+        let near = span.near;
+        // Grid coordinates are affine in t: q(t) = q0 + t·dq.
+        let to_grid = self.aabb.size().recip() * r;
+        let (q0, dq) = ((origin - self.aabb.min) * to_grid, dir * to_grid);
+        let (mut k, end) = (steps.start, steps.end);
         let mut taken = 0;
-        while t < far && taken < max {
-            let mid = t + 0.5 * dt;
-            let u = self.aabb.to_unit(origin + mid * dir);
-            let i = self.cell_of(u);
-            if self.bits[i / 64] >> (i % 64) & 1 == 1 {
+        while k < end && taken < max {
+            let mid = near + (k as f32 + 0.5) * dt;
+            let c = floor3(q0 + mid * dq);
+            if self.occupied_cell(c) {
                 ts.push(mid);
                 deltas.push(dt);
                 taken += 1;
-                t += dt;
+                k = k.saturating_add(stride.max(1));
             } else {
-                // Jump to the first step of the lattice `near + k·dt` whose midpoint lies past
-                // this empty cell (samples keep the same t whatever was skipped).
-                let c = (u * r).floor();
-                let d = dir / self.aabb.size() * r; // cells per unit t along each axis
-                let next = |k: usize| {
-                    let (ck, dk, uk) = (c[k], d[k], u[k] * r);
-                    if dk > 0.0 {
-                        (ck + 1.0 - uk) / dk
-                    } else if dk < 0.0 {
-                        (ck - uk) / dk
-                    } else {
-                        f32::INFINITY
-                    }
-                };
-                let exit = mid + next(0).min(next(1)).min(next(2)).max(0.0);
-                let steps = ((exit - near) / dt - 0.5).floor() + 1.0;
-                t = (near + steps * dt).max(t + dt);
+                // Walk the cells after this empty one (3-D DDA) to the next occupied one, then
+                // resume at the first step whose midpoint lies past the entry into it.
+                let entry = self.next_occupied(q0, dq, c, res, span.far);
+                let past = floor1(((entry - near) / dt - 0.5).min(end as f32)) + 1.0;
+                k = (past.max(0.0) as u32).max(k + 1);
             }
         }
-        t
+        k
     }
+
+    /// Whether the cell at (floored) grid coordinates `c` is occupied (clamped into the grid).
+    #[inline]
+    fn occupied_cell(&self, c: Vec3) -> bool {
+        let i = self.index_of_cell(c);
+        self.bits[i / 64] >> (i % 64) & 1 == 1
+    }
+
+    /// Where the ray `q0 + t·dq` (grid coordinates) enters the first occupied cell after cell
+    /// `c` (Amanatides–Woo stepping); `f32::INFINITY` when it leaves the grid, or passes `far`,
+    /// first.
+    fn next_occupied(&self, q0: Vec3, dq: Vec3, c: Vec3, res: i32, far: f32) -> f32 {
+        let mut cell = [c.x as i32, c.y as i32, c.z as i32];
+        let mut t_next = [0.0f32; 3];
+        let mut t_cell = [0.0f32; 3];
+        let mut step = [0i32; 3];
+        for a in 0..3 {
+            cell[a] = cell[a].clamp(0, res - 1);
+            if dq[a] > 0.0 {
+                (step[a], t_cell[a]) = (1, dq[a].recip());
+                t_next[a] = (cell[a] as f32 + 1.0 - q0[a]) * t_cell[a];
+            } else if dq[a] < 0.0 {
+                (step[a], t_cell[a]) = (-1, -dq[a].recip());
+                t_next[a] = (q0[a] - cell[a] as f32) * t_cell[a];
+            } else {
+                t_next[a] = f32::INFINITY;
+            }
+        }
+        let stride = [1, res as usize, (res * res) as usize];
+        let mut i = cell[0] as usize + stride[1] * cell[1] as usize + stride[2] * cell[2] as usize;
+        loop {
+            let a = if t_next[0] < t_next[1] {
+                if t_next[0] < t_next[2] {
+                    0
+                } else {
+                    2
+                }
+            } else if t_next[1] < t_next[2] {
+                1
+            } else {
+                2
+            };
+            let t = t_next[a];
+            cell[a] += step[a];
+            if !(0..res).contains(&cell[a]) || t >= far {
+                return f32::INFINITY;
+            }
+            i = if step[a] > 0 { i + stride[a] } else { i - stride[a] };
+            t_next[a] += t_cell[a];
+            if self.bits[i / 64] >> (i % 64) & 1 == 1 {
+                return t;
+            }
+        }
+    }
+
+    /// Index of the cell at (floored) grid coordinates `c`, clamped into the grid.
+    #[inline]
+    fn index_of_cell(&self, c: Vec3) -> usize {
+        let r = self.config.resolution;
+        let c = c.clamp(Vec3::ZERO, Vec3::splat((r - 1) as f32)).as_uvec3();
+        (c.x + r * (c.y + r * c.z)) as usize
+    }
+}
+
+/// `x.floor()` without a libm call (the build's baseline has no `roundss`): exact for
+/// |x| < 2³¹; NaN gives 0 (every caller clamps into the grid).
+#[inline]
+fn floor1(x: f32) -> f32 {
+    let f = x as i32 as f32;
+    if f > x {
+        f - 1.0
+    } else {
+        f
+    }
+}
+
+#[inline]
+fn floor3(v: Vec3) -> Vec3 {
+    Vec3::new(floor1(v.x), floor1(v.y), floor1(v.z))
 }

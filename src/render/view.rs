@@ -1,12 +1,13 @@
 //! Rendering whole views of a trained [`Nerf`] into caller buffers, with a reusable
 //! [`ViewRenderer`] (no allocation per frame once its buffers have grown).
 //!
-//! Rays are marched in **segments** (16 samples, doubling to 128) so work stops where the
-//! answer is known:
+//! A view is cut into tiles of whole rows, each marched and evaluated by one thread start to
+//! finish. Rays are marched in **segments** so work stops where the answer is known:
 //! - [`ViewRenderer::depth`] — threshold depth only: evaluates only the density network and
-//!   stops each ray at its first solid sample (the robot's hot path);
+//!   stops each ray at its first solid sample (the robot's hot path), 4 samples per round;
 //! - [`ViewRenderer::full`] — colour, expected depth and threshold depth: the full field,
-//!   each ray stopped once it is opaque (`T < 1e-4`, as in training) and its threshold hit found.
+//!   each ray stopped once it is opaque (`T < 1e-4`, as in training) and its threshold hit found;
+//!   segments of 16 samples doubling to 128.
 //!
 //! Outputs are **z-depth** (distance along the camera's viewing axis, in the dataset's unit —
 //! metres for ours), row-major from the top-left, NaN for a hole (no solid sample). Segmented
@@ -22,10 +23,16 @@ use crate::field::{Nerf, NerfField};
 use crate::simd::Isa;
 use crate::train::model::Model;
 use glam::Vec3;
+use rayon::prelude::*;
+use std::sync::Mutex;
 
-/// Rays per chunk (bounds the sample buffers).
-const CHUNK_RAYS: usize = 8192;
-/// First segment length; doubles per round up to [`MAX_SEGMENT`].
+/// Pixels per tile: the rays one worker marches together (rounded to whole image rows). Small
+/// enough that a round's encodings and activations stay in L2, large enough to batch the MLP.
+const TILE_PIXELS: usize = 1024;
+/// Samples per ray per round of the depth-only path (rays stop at their first solid sample, so
+/// short segments waste little; a tile keeps the batch large).
+const DEPTH_SEGMENT: usize = 4;
+/// First segment length of the full path; doubles per round up to [`MAX_SEGMENT`].
 const FIRST_SEGMENT: usize = 16;
 const MAX_SEGMENT: usize = 128;
 
@@ -34,7 +41,8 @@ const MAX_SEGMENT: usize = 128;
 struct RayState {
     ray: Ray,
     span: RaySpan,
-    next_t: f32,
+    /// Next lattice step to march.
+    next: u32,
     taken: u32,
     hit: Option<f32>,
     acc: RayAccumulator,
@@ -52,8 +60,28 @@ pub struct FullOutputs<'a> {
     pub beta: &'a mut [f32],
 }
 
-/// Reusable buffers for rendering views of a model `M` (a [`NerfField`] by default).
-pub struct ViewRenderer<M: Model = NerfField> {
+impl<'a> FullOutputs<'a> {
+    /// Splits off the first `len` pixels of every (non-empty) buffer.
+    fn take_front(&mut self, len: usize) -> FullOutputs<'a> {
+        fn front<'b, T>(buf: &mut &'b mut [T], len: usize) -> &'b mut [T] {
+            if buf.is_empty() {
+                return &mut [];
+            }
+            let (head, tail) = std::mem::take(buf).split_at_mut(len);
+            *buf = tail;
+            head
+        }
+        FullOutputs {
+            rgb: front(&mut self.rgb, len),
+            expected_z: front(&mut self.expected_z, len),
+            threshold_z: front(&mut self.threshold_z, len),
+            beta: front(&mut self.beta, len),
+        }
+    }
+}
+
+/// One worker's buffers: the rays of its current tile and the samples of one round.
+struct Worker<M: Model> {
     states: Vec<RayState>,
     active: Vec<u32>,
     seg: Vec<(u32, u32)>,
@@ -68,9 +96,9 @@ pub struct ViewRenderer<M: Model = NerfField> {
     ctx: M::Context,
 }
 
-impl<M: Model> Default for ViewRenderer<M> {
+impl<M: Model> Default for Worker<M> {
     fn default() -> Self {
-        ViewRenderer {
+        Worker {
             states: Vec::new(),
             active: Vec::new(),
             seg: Vec::new(),
@@ -84,6 +112,22 @@ impl<M: Model> Default for ViewRenderer<M> {
             beta_acc: Vec::new(),
             ctx: M::Context::default(),
         }
+    }
+}
+
+/// Reusable buffers for rendering views of a model `M` (a [`NerfField`] by default): one
+/// worker per thread of the pool it runs on.
+///
+/// A view is cut into tiles of whole rows ([`TILE_PIXELS`]); each thread takes the next tile
+/// and marches, evaluates and composites it on its own, so everything a round touches stays in
+/// its core's cache. Tiles do not depend on the thread count, and neither do the results.
+pub struct ViewRenderer<M: Model = NerfField> {
+    workers: Vec<Worker<M>>,
+}
+
+impl<M: Model> Default for ViewRenderer<M> {
+    fn default() -> Self {
+        ViewRenderer { workers: Vec::new() }
     }
 }
 
@@ -121,13 +165,8 @@ impl<M: Model> ViewRenderer<M> {
     ) {
         let n = (k.width * k.height) as usize;
         assert_eq!(z.len(), n, "render: depth buffer is not width × height");
-        for start in (0..n).step_by(CHUNK_RAYS) {
-            let end = (start + CHUNK_RAYS).min(n);
-            self.run_chunk(isa, scene, k, pose, start..end, m, false);
-            for (o, s) in z[start..end].iter_mut().zip(&self.states) {
-                *o = s.hit.map_or(f32::NAN, |t| s.ray.range_to_z(t));
-            }
-        }
+        let out = FullOutputs { rgb: &mut [], expected_z: &mut [], threshold_z: z, beta: &mut [] };
+        self.run(isa, scene, k, pose, [0.0; 3], m, false, out);
     }
 
     /// Colour (over `background`), expected and threshold z-depth of every pixel.
@@ -150,31 +189,49 @@ impl<M: Model> ViewRenderer<M> {
         ] {
             assert!(len == n || len == 0, "render: {what} buffer is not width × height");
         }
-        for start in (0..n).step_by(CHUNK_RAYS) {
-            let end = (start + CHUNK_RAYS).min(n);
-            self.run_chunk(isa, scene, k, pose, start..end, m, true);
-            for (i, s) in self.states.iter().enumerate() {
-                let p = start + i;
-                let c = s.acc.finish(background);
-                if !out.rgb.is_empty() {
-                    out.rgb[p] = c.rgb;
-                }
-                if !out.expected_z.is_empty() {
-                    out.expected_z[p] = s.ray.range_to_z(c.depth);
-                }
-                if !out.threshold_z.is_empty() {
-                    out.threshold_z[p] = s.hit.map_or(f32::NAN, |t| s.ray.range_to_z(t));
-                }
-                if !out.beta.is_empty() {
-                    out.beta[p] = self.beta_acc[i];
-                }
-            }
-        }
+        self.run(isa, scene, k, pose, background, m, true, out);
     }
 
-    /// Marches and evaluates pixels `pixels` to completion (`full`: colour too).
+    /// Hands the view's tiles out to one worker per thread of the current rayon pool.
     #[allow(clippy::too_many_arguments)]
-    fn run_chunk(
+    fn run(
+        &mut self,
+        isa: Isa,
+        scene: &Scene<'_, M>,
+        k: &Intrinsics,
+        pose: &Pose,
+        background: [f32; 3],
+        m: DensityThreshold,
+        full: bool,
+        out: FullOutputs<'_>,
+    ) {
+        let n = (k.width * k.height) as usize;
+        let tile = (TILE_PIXELS / k.width as usize).max(1) * k.width as usize;
+        let threads = rayon::current_num_threads().clamp(1, n.div_ceil(tile).max(1));
+        if self.workers.len() < threads {
+            self.workers.resize_with(threads, Worker::default);
+        }
+        let queue = Mutex::new((0usize, out));
+        let next_tile = || {
+            let mut q = queue.lock().unwrap_or_else(|e| e.into_inner());
+            let (start, rest) = &mut *q;
+            let s = *start;
+            let len = tile.min(n - s);
+            *start += len;
+            (len > 0).then(|| (s..s + len, rest.take_front(len)))
+        };
+        self.workers[..threads].par_iter_mut().for_each(|w| {
+            while let Some((pixels, out)) = next_tile() {
+                w.run_tile(isa, scene, k, pose, pixels, m, full, background, out);
+            }
+        });
+    }
+}
+
+impl<M: Model> Worker<M> {
+    /// Marches and evaluates pixels `pixels` to completion and writes their outputs.
+    #[allow(clippy::too_many_arguments)]
+    fn run_tile(
         &mut self,
         isa: Isa,
         scene: &Scene<'_, M>,
@@ -183,6 +240,8 @@ impl<M: Model> ViewRenderer<M> {
         pixels: std::ops::Range<usize>,
         m: DensityThreshold,
         full: bool,
+        background: [f32; 3],
+        out: FullOutputs<'_>,
     ) {
         let occ = scene.occupancy;
         let max_samples = occ.config().max_samples;
@@ -193,20 +252,13 @@ impl<M: Model> ViewRenderer<M> {
         self.beta_acc.resize(pixels.len(), 0.0);
         for p in pixels {
             let ray = pixel_ray(k, pose, p as u32 % k.width, p as u32 / k.width);
-            let span = occ.span(ray.origin, ray.dir).unwrap_or(RaySpan { near: 0.0, far: 0.0 });
-            if span.far > span.near {
+            let span = occ.span(ray.origin, ray.dir).unwrap_or(RaySpan::EMPTY);
+            if span.steps > 0 {
                 self.active.push(self.states.len() as u32);
             }
-            self.states.push(RayState {
-                ray,
-                span,
-                next_t: span.near,
-                taken: 0,
-                hit: None,
-                acc: RayAccumulator::new(),
-            });
+            self.states.push(RayState { ray, span, next: 0, taken: 0, hit: None, acc: RayAccumulator::new() });
         }
-        let mut segment = FIRST_SEGMENT;
+        let mut segment = if full { FIRST_SEGMENT } else { DEPTH_SEGMENT };
         while !self.active.is_empty() {
             self.seg.clear();
             self.t.clear();
@@ -216,15 +268,17 @@ impl<M: Model> ViewRenderer<M> {
             for &r in &self.active {
                 let s = &mut self.states[r as usize];
                 let start = self.t.len();
-                let room = segment.min((max_samples - s.taken) as usize);
-                s.next_t =
-                    occ.march_segment(s.ray.origin, s.ray.dir, s.span, s.next_t, room, &mut self.t, &mut self.delta);
+                let room = segment.min(max_samples.saturating_sub(s.taken) as usize);
+                let (o, d) = (s.ray.origin, s.ray.dir);
+                s.next = occ.march_segment(o, d, s.span, s.next..s.span.steps, room, 1, &mut self.t, &mut self.delta);
                 let count = self.t.len() - start;
                 s.taken += count as u32;
                 self.seg.push((start as u32, count as u32));
                 for &t in &self.t[start..] {
                     self.positions.push(s.ray.at(t));
-                    self.dirs.push(s.ray.dir);
+                    if full {
+                        self.dirs.push(s.ray.dir);
+                    }
                 }
             }
             let n = self.t.len();
@@ -269,10 +323,30 @@ impl<M: Model> ViewRenderer<M> {
                     }
                 }
                 let finished = if full { s.acc.is_opaque() && s.hit.is_some() } else { s.hit.is_some() };
-                let exhausted = s.next_t >= s.span.far || s.taken >= max_samples || count == 0;
+                let exhausted = s.next >= s.span.steps || s.taken >= max_samples || count == 0;
                 !(finished || exhausted)
             });
-            segment = (segment * 2).min(MAX_SEGMENT);
+            if full {
+                segment = (segment * 2).min(MAX_SEGMENT);
+            }
+        }
+        for (i, s) in self.states.iter().enumerate() {
+            if !out.threshold_z.is_empty() {
+                out.threshold_z[i] = s.hit.map_or(f32::NAN, |t| s.ray.range_to_z(t));
+            }
+            if !full {
+                continue;
+            }
+            let c = s.acc.finish(background);
+            if !out.rgb.is_empty() {
+                out.rgb[i] = c.rgb;
+            }
+            if !out.expected_z.is_empty() {
+                out.expected_z[i] = s.ray.range_to_z(c.depth);
+            }
+            if !out.beta.is_empty() {
+                out.beta[i] = self.beta_acc[i];
+            }
         }
     }
 }
