@@ -6,21 +6,26 @@ use residual_nerf::rng::Rng;
 use residual_nerf::simd::Isa;
 
 /// b = exp((ln 2048 − ln 16)/15) ≈ 1.3819; N_l = ⌊16 · b^l⌋; a level is dense while
-/// (N_l + 1)³ ≤ 2^19 = 524288 (59³ = 205379 is, 81³ = 531441 is not).
+/// (N_l + 1)³ ≤ T: for T = 2^19 = 524288, 59³ = 205379 is, 81³ = 531441 is not (5 dense
+/// levels); for the default T = 2^17 = 131072, 43³ = 79507 is, 59³ is not (4 dense levels).
 #[test]
 fn default_levels_match_hand_computed() {
-    let grid = HashGrid::new(HashGridConfig::default());
-    let res: Vec<u32> = grid.levels().iter().map(|l| l.resolution).collect();
-    assert_eq!(res, [16, 22, 30, 42, 58, 80, 111, 153, 212, 294, 406, 561, 776, 1072, 1482, 2048]);
-    let mut offset = 0;
-    for (l, level) in grid.levels().iter().enumerate() {
-        assert_eq!(level.dense, l < 5, "level {l}");
-        let want = if level.dense { (level.resolution as usize + 1).pow(3) } else { 1 << 19 };
-        assert_eq!(level.size, want, "level {l}");
-        assert_eq!(level.offset, offset, "level {l}");
-        offset += level.size;
+    assert_eq!(HashGridConfig::default().log2_table_size, 17);
+    for (log2t, dense_levels) in [(19, 5), (17, 4)] {
+        let grid = HashGrid::new(HashGridConfig { log2_table_size: log2t, ..Default::default() });
+        let res: Vec<u32> = grid.levels().iter().map(|l| l.resolution).collect();
+        assert_eq!(res, [16, 22, 30, 42, 58, 80, 111, 153, 212, 294, 406, 561, 776, 1072, 1482, 2048]);
+        let mut offset = 0;
+        for (l, level) in grid.levels().iter().enumerate() {
+            assert_eq!(level.dense, l < dense_levels, "log2T {log2t} level {l}");
+            let want = if level.dense { (level.resolution as usize + 1).pow(3) } else { 1 << log2t };
+            assert_eq!(level.size, want, "log2T {log2t} level {l}");
+            assert_eq!(level.offset, offset, "log2T {log2t} level {l}");
+            offset += level.size;
+        }
+        assert_eq!(grid.entries(), offset);
     }
-    assert_eq!(grid.entries(), offset);
+    let grid = HashGrid::new(HashGridConfig::default());
     assert_eq!((grid.features(), grid.output_width()), (32, 32));
     let twelve = HashGrid::new(HashGridConfig { levels: 12, ..Default::default() });
     assert_eq!((twelve.features(), twelve.output_width()), (24, 32)); // padded to the MLP tile

@@ -36,7 +36,7 @@ pub fn default_train_config(steps: u32) -> TrainConfig {
 }
 
 /// The grid and trainer settings of `rnerf train` and `rnerf compare`: the defaults
-/// ([`default_train_config`], log2T = 19) with the command line's steps, rays, table size and
+/// ([`default_train_config`], log2T = 17) with the command line's steps, rays, table size and
 /// seed; images without alpha (every pixel shows a surface) train over random background
 /// colours, others over white (what their alpha was composited over).
 pub(super) fn trainer_settings(

@@ -15,8 +15,10 @@ use crate::field::mix::{DensityMix, MixKind};
 use crate::field::mixnet::{default_mixnet_grid, MixnetEncoding};
 use crate::field::residual::ResidualConfig;
 use crate::field::NerfConfig;
+use crate::io::LoadedModel;
 use crate::mlp::{Activation, Mlp, MlpConfig, MlpContext, MlpParams, MlpWorkspace};
-use crate::render::{DensityThreshold, Intrinsics, ViewRenderer};
+use crate::onboard::{DepthKind, DepthMethod, DepthRenderer, DepthRequest};
+use crate::render::{DensityThreshold, Intrinsics};
 use crate::rng::Rng;
 use crate::simd::Isa;
 use crate::train::trainer::{train_nerf, train_residual, StepStats, TrainConfig};
@@ -423,14 +425,20 @@ pub fn run(opts: &BenchOptions) -> BenchReport {
     push("train_residual_rays_per_s", "rays/s", rays);
     let k = Intrinsics::from_fov_x(200, 200, 50f32.to_radians());
     let pose = scene.views[0].pose;
-    let m = DensityThreshold::Sigma(crate::cli::DEFAULT_M);
+    // The robot's library call: `DepthRenderer` with its defaults (thinned grid), on this pool.
+    let request = DepthRequest {
+        method: DepthMethod::Threshold(DensityThreshold::Sigma(crate::cli::DEFAULT_M)),
+        kind: DepthKind::Z,
+    };
     let mut z = vec![0f32; 200 * 200];
-    let mut renderer = ViewRenderer::new();
-    let v = time_reps(reps, || renderer.depth(isa, &(&nerf).into(), &k, &pose, m, &mut z));
-    push("render_depth_ms_200", "ms", v.iter().map(|s| s * 1e3).collect());
-    let mut renderer = ViewRenderer::new();
-    let v = time_reps(reps, || renderer.depth(isa, &residual.scene(), &k, &pose, m, &mut z));
-    push("render_depth_ms_200_residual", "ms", v.iter().map(|s| s * 1e3).collect());
+    for (name, model) in [
+        ("render_depth_ms_200", LoadedModel::Nerf(Box::new(nerf.clone()))),
+        ("render_depth_ms_200_residual", LoadedModel::Residual(Box::new(residual))),
+    ] {
+        let mut camera = DepthRenderer::new(model);
+        let v = time_reps(reps, || camera.depth(&k, &pose, request, &mut z).expect("a valid camera and buffer"));
+        push(name, "ms", v.iter().map(|s| s * 1e3).collect());
+    }
     // Occupancy-grid updates of that model at the default 128³: a warm-up update evaluates
     // every cell, a later one ¼ random + ¼ occupied cells (DESIGN §2.5), all through the
     // density-only path on all threads.

@@ -50,7 +50,8 @@ pub(crate) const CHUNK: usize = 256;
 pub struct HashGridConfig {
     /// Number of levels `L`. Defaults to 16.
     pub levels: usize,
-    /// log2 of the per-level table size `T`. Defaults to 19 (Instant-NGP's NeRF setting).
+    /// log2 of the per-level table size `T`. Defaults to 17, chosen by measured quality per
+    /// second on the dev scenes (README "Decisions"; Instant-NGP's NeRF setting is 19).
     pub log2_table_size: u32,
     /// Coarsest resolution `N_min`. Defaults to 16.
     pub base_resolution: u32,
@@ -60,7 +61,7 @@ pub struct HashGridConfig {
 
 impl Default for HashGridConfig {
     fn default() -> Self {
-        HashGridConfig { levels: 16, log2_table_size: 19, base_resolution: 16, finest_resolution: 2048 }
+        HashGridConfig { levels: 16, log2_table_size: 17, base_resolution: 16, finest_resolution: 2048 }
     }
 }
 
