@@ -1,6 +1,6 @@
 //! `cargo bench`: the kernel figures of `rnerf bench` as a table, at every CPU level the
 //! host has (so the SIMD speed-up over the scalar twin is visible).
-//! Options via environment: `RNERF_BENCH_REPS` (default 5), `RNERF_BENCH_LOG2T` (default 19).
+//! Options via environment: `RNERF_BENCH_REPS` (default 5), `RNERF_BENCH_LOG2T` (default: the crate's, 17).
 
 use residual_nerf::bench::{run, BenchOptions};
 use residual_nerf::simd::Isa;
