@@ -288,7 +288,6 @@ impl OccupancyGrid {
                 span,
                 0..span.steps,
                 self.config.max_samples as usize,
-                1,
                 &mut out.t,
                 &mut out.delta,
             );
@@ -305,9 +304,8 @@ impl OccupancyGrid {
     }
 
     /// Appends the samples of the occupied lattice steps among `steps` (a range of the span's
-    /// lattice), at most `max`, taking one every `stride` steps (1: every step, as
-    /// [`Self::march`]), to `ts`/`deltas`; returns the step to continue from (`≥ steps.end`
-    /// once the range is done). Segments of stride 1 concatenate to exactly
+    /// lattice), at most `max`, to `ts`/`deltas`; returns the step to continue from
+    /// (`≥ steps.end` once the range is done). Segments concatenate to exactly
     /// [`Self::march`]'s samples, and a sample's `t` depends only on its step.
     #[allow(clippy::too_many_arguments)]
     pub fn march_segment(
@@ -317,7 +315,6 @@ impl OccupancyGrid {
         span: RaySpan,
         steps: std::ops::Range<u32>,
         max: usize,
-        stride: u32,
         ts: &mut Vec<f32>,
         deltas: &mut Vec<f32>,
     ) -> u32 {
@@ -337,7 +334,7 @@ impl OccupancyGrid {
                 ts.push(mid);
                 deltas.push(dt);
                 taken += 1;
-                k = k.saturating_add(stride.max(1));
+                k += 1;
             } else {
                 // Walk the cells after this empty one (3-D DDA) to the next occupied one, then
                 // resume at the first step whose midpoint lies past the entry into it.

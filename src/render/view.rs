@@ -270,7 +270,7 @@ impl<M: Model> Worker<M> {
                 let start = self.t.len();
                 let room = segment.min(max_samples.saturating_sub(s.taken) as usize);
                 let (o, d) = (s.ray.origin, s.ray.dir);
-                s.next = occ.march_segment(o, d, s.span, s.next..s.span.steps, room, 1, &mut self.t, &mut self.delta);
+                s.next = occ.march_segment(o, d, s.span, s.next..s.span.steps, room, &mut self.t, &mut self.delta);
                 let count = self.t.len() - start;
                 s.taken += count as u32;
                 self.seg.push((start as u32, count as u32));
