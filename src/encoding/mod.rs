@@ -4,5 +4,5 @@
 pub mod hashgrid;
 pub mod sh;
 
-pub use hashgrid::{HashGrid, HashGridConfig, HashGridParams, LevelInfo};
+pub use hashgrid::{FeatureLevels, HashGrid, HashGridConfig, HashGridParams, LevelInfo};
 pub use sh::{sh4, SH4_COEFFS};

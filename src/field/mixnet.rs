@@ -64,6 +64,29 @@ pub struct MixnetGrads {
     pub mlp: Vec<f32>,
 }
 
+/// What one chunk of the fused training step saves (see [`super::FieldChunk`]).
+#[derive(Clone, Debug, Default)]
+pub struct MixnetChunk {
+    unit: Vec<[f32; 3]>,
+    enc: Vec<f32>,
+    ctx: MlpContext,
+    ws: MlpWorkspace,
+    d_out: Vec<f32>,
+    d_enc: Vec<f32>,
+}
+
+impl MixnetChunk {
+    /// The rows' unit-cube positions (own encoding only; empty when shared).
+    pub fn unit(&self) -> &[[f32; 3]] {
+        &self.unit
+    }
+
+    /// dL/d(features) of the last [`Mixnet::chunk_backward`] (rows × input stride).
+    pub fn feature_grad(&self) -> &[f32] {
+        &self.d_enc
+    }
+}
+
 #[derive(Clone, Debug, Default)]
 struct Slot {
     ctx: MlpContext,
@@ -178,6 +201,75 @@ impl Mixnet {
                 *o = row[0];
             }
         });
+    }
+
+    /// Chunk forward on this thread: logits `m` at `positions` (`shared` as in
+    /// [`Mixnet::forward`]: the residual's features of those rows, or `None` with an own grid).
+    pub fn chunk_forward(
+        &self,
+        isa: Isa,
+        params: &MixnetParams,
+        positions: &[Vec3],
+        shared: Option<&[f32]>,
+        logits: &mut [f32],
+        c: &mut MixnetChunk,
+    ) {
+        let n = positions.len();
+        assert_eq!(logits.len(), n, "mixnet: output length differs from the sample count");
+        c.unit.clear();
+        let enc = match (&self.grid, shared) {
+            (Some(grid), None) => {
+                c.unit.extend(positions.iter().map(|&p| self.aabb.to_unit(p).to_array()));
+                c.enc.resize(n * grid.output_width(), 0.0);
+                grid.forward(isa, &params.grid.table, &c.unit, &mut c.enc);
+                &c.enc[..]
+            }
+            (None, Some(f)) => f,
+            _ => panic!("mixnet: shared features are given exactly when the encoding is shared"),
+        };
+        let (w, so) = (self.mlp.input_stride(), self.mlp.output_stride());
+        assert_eq!(enc.len(), n * w, "mixnet: features are not {w} per sample");
+        self.mlp.forward(isa, &params.mlp, enc, n, &mut c.ctx);
+        for (o, row) in logits.iter_mut().zip(c.ctx.output().chunks(so)) {
+            *o = row[0];
+        }
+    }
+
+    /// Keeps rows `keep` (strictly increasing) of the last [`Mixnet::chunk_forward`].
+    pub fn chunk_keep(&self, c: &mut MixnetChunk, keep: &[u32]) {
+        if let Some(grid) = &self.grid {
+            crate::mlp::keep_rows(&mut c.unit, 1, keep);
+            c.unit.truncate(keep.len());
+            crate::mlp::keep_rows(&mut c.enc, grid.output_width(), keep);
+            c.enc.truncate(keep.len() * grid.output_width());
+        }
+        c.ctx.keep_rows(keep);
+    }
+
+    /// Chunk backward: dL/dm of the chunk's rows → MLP weight gradients added into `g`, and
+    /// dL/d(features) left in [`MixnetChunk::feature_grad`] (the own grid's, or the residual's
+    /// shared features' share). `shared` as given to the forward (kept rows).
+    pub fn chunk_backward(
+        &self,
+        isa: Isa,
+        params: &MixnetParams,
+        c: &mut MixnetChunk,
+        shared: Option<&[f32]>,
+        d_logits: &[f32],
+        g: &mut [f32],
+    ) {
+        let n = c.ctx.n();
+        let (w, so) = (self.mlp.input_stride(), self.mlp.output_stride());
+        assert_eq!(d_logits.len(), n, "mixnet: gradient length differs from the chunk's rows");
+        c.d_enc.resize(n * w, 0.0);
+        c.d_out.clear();
+        c.d_out.resize(n * so, 0.0);
+        for (row, &d) in c.d_out.chunks_mut(so).zip(d_logits) {
+            row[0] = d;
+        }
+        let enc = shared.unwrap_or(&c.enc);
+        let d_enc = Some(&mut c.d_enc[..]);
+        self.mlp.backward(isa, &params.mlp, enc, &c.ctx, &c.d_out, g, GradientMode::Accumulate, d_enc, &mut c.ws);
     }
 
     /// dL/dh(x) of the last backward with a shared encoding (`n × width`), for the caller to add

@@ -118,6 +118,70 @@ impl FieldContext {
     }
 }
 
+/// What one chunk of the fused training step saves ([`NerfField::chunk_density`] →
+/// [`NerfField::chunk_keep`] → [`NerfField::chunk_colour`] → [`NerfField::chunk_backward`]):
+/// a chunk is a few hundred samples on one thread, so all of it stays in L1/L2 between the
+/// forward and the backward.
+#[derive(Clone, Debug, Default)]
+pub struct FieldChunk {
+    unit: Vec<[f32; 3]>,
+    enc: Vec<f32>,
+    density: MlpContext,
+    colour_in: Vec<f32>,
+    colour: MlpContext,
+    ws: MlpWorkspace,
+    d_out: Vec<f32>,
+    d_colour_in: Vec<f32>,
+    d_enc: Vec<f32>,
+}
+
+impl FieldChunk {
+    /// Rows held (after [`NerfField::chunk_keep`], the kept ones).
+    pub fn len(&self) -> usize {
+        self.unit.len()
+    }
+
+    /// Whether the chunk holds no rows.
+    pub fn is_empty(&self) -> bool {
+        self.unit.is_empty()
+    }
+
+    /// The rows' unit-cube positions.
+    pub fn unit(&self) -> &[[f32; 3]] {
+        &self.unit
+    }
+
+    /// The rows' encoded features (`len() × encoding width`).
+    pub fn features(&self) -> &[f32] {
+        &self.enc
+    }
+
+    /// dL/d(features) of the last [`NerfField::chunk_backward`] (`len() × encoding width`).
+    pub fn feature_grad(&self) -> &[f32] {
+        &self.d_enc
+    }
+}
+
+/// The networks' weight gradients accumulated by one slot of the fused training step (the
+/// grid's come from the samples' feature gradients, scattered once per step).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct NetGrads {
+    /// dL/d(density weights).
+    pub density: Vec<f32>,
+    /// dL/d(colour weights).
+    pub colour: Vec<f32>,
+}
+
+impl NetGrads {
+    /// Zeroes the gradients (sized on first use).
+    pub fn clear(&mut self, field: &NerfField) {
+        self.density.clear();
+        self.density.resize(field.density.n_params(), 0.0);
+        self.colour.clear();
+        self.colour.resize(field.colour.n_params(), 0.0);
+    }
+}
+
 impl NerfField {
     /// The field of `config`.
     pub fn new(config: NerfConfig) -> NerfField {
@@ -278,6 +342,122 @@ impl NerfField {
         mode: GradientMode,
     ) {
         self.backward_with_feature_grad(isa, params, ctx, d_raw, d_rgb_raw, &[], grads, mode);
+    }
+
+    /// Chunk forward, first half: encodes `positions` and runs the density network on this
+    /// thread; writes raw densities `s` into `raw`.
+    pub fn chunk_density(
+        &self,
+        isa: Isa,
+        params: &NerfParams,
+        positions: &[Vec3],
+        raw: &mut [f32],
+        c: &mut FieldChunk,
+    ) {
+        let n = positions.len();
+        assert_eq!(raw.len(), n, "field: output length differs from the sample count");
+        c.unit.clear();
+        c.unit.extend(positions.iter().map(|&p| self.config.aabb.to_unit(p).to_array()));
+        let (w, so) = (self.grid.output_width(), self.density.output_stride());
+        c.enc.resize(n * w, 0.0);
+        self.grid.forward(isa, &params.grid.table, &c.unit, &mut c.enc);
+        self.density.forward(isa, &params.density, &c.enc, n, &mut c.density);
+        for (o, row) in raw.iter_mut().zip(c.density.output().chunks(so)) {
+            *o = row[0];
+        }
+    }
+
+    /// Keeps rows `keep` (strictly increasing) of the last [`NerfField::chunk_density`]: the
+    /// rest of the chunk runs as if only those samples had been given.
+    pub fn chunk_keep(&self, c: &mut FieldChunk, keep: &[u32]) {
+        crate::mlp::keep_rows(&mut c.unit, 1, keep);
+        c.unit.truncate(keep.len());
+        crate::mlp::keep_rows(&mut c.enc, self.grid.output_width(), keep);
+        c.enc.truncate(keep.len() * self.grid.output_width());
+        c.density.keep_rows(keep);
+    }
+
+    /// Chunk forward, second half: the colour network on the chunk's rows seen along `dirs`;
+    /// writes pre-sigmoid colours into `rgb_raw`.
+    pub fn chunk_colour(
+        &self,
+        isa: Isa,
+        params: &NerfParams,
+        dirs: &[Vec3],
+        rgb_raw: &mut [[f32; 3]],
+        c: &mut FieldChunk,
+    ) {
+        let n = c.len();
+        assert!(dirs.len() == n && rgb_raw.len() == n, "field: buffers differ from the chunk's rows");
+        let (so, ci, co) = (self.density.output_stride(), self.colour.input_stride(), self.colour.output_stride());
+        c.colour_in.clear();
+        c.colour_in.resize(n * ci, 0.0);
+        for ((row, dens), dir) in c.colour_in.chunks_mut(ci).zip(c.density.output().chunks(so)).zip(dirs) {
+            row[..SH4_COEFFS].copy_from_slice(&sh4(dir.to_array()));
+            row[SH4_COEFFS..SH4_COEFFS + GEO_FEATURES].copy_from_slice(&dens[1..1 + GEO_FEATURES]);
+        }
+        self.colour.forward(isa, &params.colour, &c.colour_in, n, &mut c.colour);
+        for (o, row) in rgb_raw.iter_mut().zip(c.colour.output().chunks(co)) {
+            *o = [row[0], row[1], row[2]];
+        }
+    }
+
+    /// Chunk backward: dL/ds (`d_raw`) and dL/dc′ (`d_rgb_raw`) of the chunk's rows →
+    /// network weight gradients added into `g`, and dL/d(features) left in
+    /// [`FieldChunk::feature_grad`] for the grid's backward.
+    pub fn chunk_backward(
+        &self,
+        isa: Isa,
+        params: &NerfParams,
+        c: &mut FieldChunk,
+        d_raw: &[f32],
+        d_rgb_raw: &[[f32; 3]],
+        g: &mut NetGrads,
+    ) {
+        let n = c.len();
+        let (w, so, ci, co) = (
+            self.grid.output_width(),
+            self.density.output_stride(),
+            self.colour.input_stride(),
+            self.colour.output_stride(),
+        );
+        assert!(d_raw.len() == n && d_rgb_raw.len() == n, "field: gradient buffers differ from the chunk's rows");
+        c.d_enc.resize(n * w, 0.0);
+        c.d_out.clear();
+        c.d_out.resize(n * co, 0.0);
+        for (row, d) in c.d_out.chunks_mut(co).zip(d_rgb_raw) {
+            row[..3].copy_from_slice(d);
+        }
+        c.d_colour_in.resize(n * ci, 0.0);
+        self.colour.backward(
+            isa,
+            &params.colour,
+            &c.colour_in,
+            &c.colour,
+            &c.d_out,
+            &mut g.colour,
+            GradientMode::Accumulate,
+            Some(&mut c.d_colour_in),
+            &mut c.ws,
+        );
+        c.d_out.clear();
+        c.d_out.resize(n * so, 0.0);
+        for (b, row) in c.d_out.chunks_mut(so).enumerate() {
+            row[0] = d_raw[b];
+            row[1..1 + GEO_FEATURES]
+                .copy_from_slice(&c.d_colour_in[b * ci + SH4_COEFFS..b * ci + SH4_COEFFS + GEO_FEATURES]);
+        }
+        self.density.backward(
+            isa,
+            &params.density,
+            &c.enc,
+            &c.density,
+            &c.d_out,
+            &mut g.density,
+            GradientMode::Accumulate,
+            Some(&mut c.d_enc),
+            &mut c.ws,
+        );
     }
 
     /// Width of the encoded features per sample ([`FieldContext::features`] rows).

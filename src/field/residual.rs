@@ -4,8 +4,8 @@
 //! takes dL/dσ and dL/dc and fills gradients of the residual and the Mixnet only.
 
 use super::mix::{mix_backward, mix_forward, MixInput, MixKind, MixOutput};
-use super::mixnet::{Mixnet, MixnetContext, MixnetEncoding, MixnetGrads, MixnetParams};
-use super::{FieldContext, Nerf, NerfConfig, NerfField, NerfGrads, NerfParams};
+use super::mixnet::{Mixnet, MixnetChunk, MixnetContext, MixnetEncoding, MixnetGrads, MixnetParams};
+use super::{FieldChunk, FieldContext, Nerf, NerfConfig, NerfField, NerfGrads, NerfParams, NetGrads};
 use crate::rng::Rng;
 use crate::simd::Isa;
 use crate::GradientMode;
@@ -86,6 +86,46 @@ pub struct ResidualContext {
     d_rgb_raw: Vec<[f32; 3]>,
     d_logits: Vec<f32>,
     s_res: Vec<f32>,
+}
+
+/// What one chunk of the fused training step saves (see [`FieldChunk`]): the background's,
+/// the residual's and the Mixnet's chunk state and the per-sample mix.
+#[derive(Clone, Debug, Default)]
+pub struct ResidualChunk {
+    bg: FieldChunk,
+    res: FieldChunk,
+    mix: MixnetChunk,
+    s_bg: Vec<f32>,
+    s_res: Vec<f32>,
+    logits: Vec<f32>,
+    c_bg: Vec<[f32; 3]>,
+    c_res: Vec<[f32; 3]>,
+    inputs: Vec<MixInput>,
+    outputs: Vec<MixOutput>,
+    d_s_res: Vec<f32>,
+    d_c_res: Vec<[f32; 3]>,
+    d_m: Vec<f32>,
+}
+
+impl ResidualChunk {
+    /// The residual's chunk state (its rows' unit positions for the grid's backward).
+    pub fn residual(&self) -> &FieldChunk {
+        &self.res
+    }
+
+    /// The Mixnet's chunk state.
+    pub fn mixnet(&self) -> &MixnetChunk {
+        &self.mix
+    }
+}
+
+/// The networks' weight gradients accumulated by one slot of the fused training step.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ResidualNetGrads {
+    /// The residual NeRF's networks.
+    pub residual: NetGrads,
+    /// The Mixnet's MLP.
+    pub mixnet: Vec<f32>,
 }
 
 impl ResidualField {
@@ -173,7 +213,7 @@ impl ResidualField {
     }
 
     /// Mixed density σ only (background and residual density networks and the Mixnet; no
-    /// colour): for occupancy updates, pruning and depth-only rendering.
+    /// colour): for occupancy updates and depth-only rendering.
     pub fn density(
         &self,
         isa: Isa,
@@ -281,6 +321,112 @@ impl ResidualField {
     }
 
     /// The residual's features of the last forward when the Mixnet shares them.
+    /// Chunk forward, first half, on this thread: activated mixed σ at `positions` (background
+    /// and residual density networks, the Mixnet), saving for the rest of the chunk.
+    pub fn chunk_density(
+        &self,
+        isa: Isa,
+        params: &ResidualParams,
+        positions: &[Vec3],
+        sigma: &mut [f32],
+        c: &mut ResidualChunk,
+    ) {
+        let n = positions.len();
+        assert_eq!(sigma.len(), n, "residual: output length differs from the sample count");
+        let bg = &self.background;
+        c.s_bg.resize(n, 0.0);
+        c.s_res.resize(n, 0.0);
+        c.logits.clear();
+        c.logits.resize(n, 0.0);
+        bg.field.chunk_density(isa, &bg.params, positions, &mut c.s_bg, &mut c.bg);
+        self.residual.chunk_density(isa, &params.residual, positions, &mut c.s_res, &mut c.res);
+        if matches!(self.kind, MixKind::Mixnet(_)) {
+            let shared = (self.mixnet.grid().is_none()).then(|| c.res.features());
+            self.mixnet.chunk_forward(isa, &params.mixnet, positions, shared, &mut c.logits, &mut c.mix);
+        }
+        for i in 0..n {
+            let x = MixInput { s_bg: c.s_bg[i], c_bg: [0.0; 3], s_res: c.s_res[i], c_res: [0.0; 3], m: c.logits[i] };
+            sigma[i] = mix_forward(self.kind, &x).sigma;
+        }
+    }
+
+    /// Chunk forward, second half: keeps rows `keep` (strictly increasing) of the last
+    /// [`ResidualField::chunk_density`] and writes their mixed colours, seen along `dirs`
+    /// (one per kept row), into `rgb`.
+    pub fn chunk_colour(
+        &self,
+        isa: Isa,
+        params: &ResidualParams,
+        keep: &[u32],
+        dirs: &[Vec3],
+        rgb: &mut [[f32; 3]],
+        c: &mut ResidualChunk,
+    ) {
+        let n = keep.len();
+        assert!(dirs.len() == n && rgb.len() == n, "residual: buffers differ from the kept rows");
+        let bg = &self.background;
+        bg.field.chunk_keep(&mut c.bg, keep);
+        self.residual.chunk_keep(&mut c.res, keep);
+        if matches!(self.kind, MixKind::Mixnet(_)) {
+            self.mixnet.chunk_keep(&mut c.mix, keep);
+        }
+        for v in [&mut c.s_bg, &mut c.s_res, &mut c.logits] {
+            crate::mlp::keep_rows(v, 1, keep);
+            v.truncate(n);
+        }
+        c.c_bg.resize(n, [0.0; 3]);
+        c.c_res.resize(n, [0.0; 3]);
+        bg.field.chunk_colour(isa, &bg.params, dirs, &mut c.c_bg, &mut c.bg);
+        self.residual.chunk_colour(isa, &params.residual, dirs, &mut c.c_res, &mut c.res);
+        c.inputs.clear();
+        c.inputs.extend((0..n).map(|i| MixInput {
+            s_bg: c.s_bg[i],
+            c_bg: c.c_bg[i],
+            s_res: c.s_res[i],
+            c_res: c.c_res[i],
+            m: c.logits[i],
+        }));
+        c.outputs.clear();
+        c.outputs.extend(c.inputs.iter().map(|x| mix_forward(self.kind, x)));
+        for (o, out) in rgb.iter_mut().zip(&c.outputs) {
+            *o = out.rgb;
+        }
+    }
+
+    /// Chunk backward: dL/dσ and dL/dc of the kept rows → the residual's and the Mixnet's
+    /// network gradients added into `g`; dL/d(features) of the residual's grid left in
+    /// `c.residual().feature_grad()` (with a shared encoding the Mixnet's share included) and of
+    /// the Mixnet's own grid in `c.mixnet().feature_grad()`.
+    pub fn chunk_backward(
+        &self,
+        isa: Isa,
+        params: &ResidualParams,
+        c: &mut ResidualChunk,
+        d_sigma: &[f32],
+        d_rgb: &[[f32; 3]],
+        g: &mut ResidualNetGrads,
+    ) {
+        let n = c.inputs.len();
+        assert!(d_sigma.len() == n && d_rgb.len() == n, "residual: gradient buffers differ from the kept rows");
+        c.d_s_res.resize(n, 0.0);
+        c.d_c_res.resize(n, [0.0; 3]);
+        c.d_m.resize(n, 0.0);
+        for i in 0..n {
+            let d = mix_backward(self.kind, &c.inputs[i], &c.outputs[i], d_sigma[i], d_rgb[i]);
+            (c.d_s_res[i], c.d_c_res[i], c.d_m[i]) = (d.s_res, d.c_res, d.m);
+        }
+        let mixnet = matches!(self.kind, MixKind::Mixnet(_));
+        let shared = self.mixnet.grid().is_none();
+        if mixnet {
+            let features = shared.then(|| c.res.features());
+            self.mixnet.chunk_backward(isa, &params.mixnet, &mut c.mix, features, &c.d_m, &mut g.mixnet);
+        }
+        self.residual.chunk_backward(isa, &params.residual, &mut c.res, &c.d_s_res, &c.d_c_res, &mut g.residual);
+        if mixnet && shared {
+            c.res.d_enc.iter_mut().zip(c.mix.feature_grad()).for_each(|(d, m)| *d += m);
+        }
+    }
+
     fn shared_features<'c>(&self, res: &'c FieldContext) -> Option<&'c [f32]> {
         (self.mixnet.grid().is_none()).then(|| res.features())
     }

@@ -4,9 +4,10 @@
 //! Beside the model's tensors ([`super::model`]):
 //! - `train.adam.{g}.m`, `train.adam.{g}.v` f32 `[n]`: Adam's moments of parameter group `g`
 //!   (in [`Model::groups`] order, padded MLP layouts included);
-//! - metadata `checkpoint`: `{"step", "skipped", "seconds", "prune", "adam_steps": [..], "fingerprint",
+//! - metadata `checkpoint`: `{"step", "skipped", "seconds", "adam_steps": [..], "fingerprint",
 //!   "train": {the TrainConfig}}`. `fingerprint` hashes the training views (poses, intrinsics,
-//!   pixels): a checkpoint resumes only on the data it was trained on.
+//!   pixels): a checkpoint resumes only on the data it was trained on. (A `prune` key, written
+//!   before the training step was fused, is ignored.)
 
 use super::model::{read_model_bytes, ModelFile, ModelReader};
 use super::{model_from_bytes, LoadedModel};
@@ -32,8 +33,6 @@ pub struct Checkpoint {
     pub fingerprint: u64,
     /// Adam's first and second moments and step count per parameter group.
     pub moments: Vec<(Vec<f32>, Vec<f32>, u32)>,
-    /// Whether the next step runs the pruning pass ([`TrainState::prune`]).
-    pub prune: bool,
 }
 
 impl Checkpoint {
@@ -65,15 +64,7 @@ impl Checkpoint {
         }
         drop(groups);
         model.after_step(&mut params); // groups() lent the weights out mutably
-        Ok(TrainState {
-            step: self.step,
-            params,
-            occupancy,
-            adams,
-            skipped: self.skipped,
-            seconds: self.seconds,
-            prune: self.prune,
-        })
+        Ok(TrainState { step: self.step, params, occupancy, adams, skipped: self.skipped, seconds: self.seconds })
     }
 }
 
@@ -124,7 +115,6 @@ pub fn save_checkpoint<M: ModelFile>(
         "step": state.step,
         "skipped": state.skipped,
         "seconds": state.seconds,
-        "prune": state.prune,
         "adam_steps": state.adams.iter().map(Adam::steps).collect::<Vec<_>>(),
         "fingerprint": format!("{fingerprint:016x}"),
         "train": train_config_json(config),
@@ -160,7 +150,6 @@ fn read_checkpoint(r: &ModelReader, occupancy: OccupancyConfig) -> Result<Checkp
     let step = u32_of("step")?;
     let skipped = u32_of("skipped")?;
     let seconds = v.get("seconds").and_then(Value::as_f64).filter(|s| s.is_finite()).ok_or_else(|| field("seconds"))?;
-    let prune = v.get("prune").and_then(Value::as_bool).ok_or_else(|| field("prune"))?;
     let fingerprint = v
         .get("fingerprint")
         .and_then(Value::as_str)
@@ -182,7 +171,7 @@ fn read_checkpoint(r: &ModelReader, occupancy: OccupancyConfig) -> Result<Checkp
         }
         moments.push((m, v, t));
     }
-    Ok(Checkpoint { step, skipped, seconds, config, fingerprint, moments, prune })
+    Ok(Checkpoint { step, skipped, seconds, config, fingerprint, moments })
 }
 
 /// A one-dimensional f32 tensor of any length.

@@ -316,11 +316,31 @@ impl MlpContext {
         self.n
     }
 
+    /// Keeps only rows `keep` (strictly increasing) of every saved layer output, in that order,
+    /// as if the forward had run on those rows alone: a backward then differentiates them.
+    pub fn keep_rows(&mut self, keep: &[u32]) {
+        debug_assert!(keep.windows(2).all(|w| w[0] < w[1]) && keep.last().is_none_or(|&k| (k as usize) < self.n));
+        for (a, &w) in self.acts.iter_mut().zip(&self.widths) {
+            keep_rows(a, w, keep);
+        }
+        self.n = keep.len();
+    }
+
     /// The network's output of the last forward pass, `n × output_stride()`.
     pub fn output(&self) -> &[f32] {
         match (self.acts.last(), self.widths.last()) {
             (Some(a), Some(&w)) => &a[..self.n * w],
             _ => &[],
+        }
+    }
+}
+
+/// Moves rows `keep` (strictly increasing) of `buf` (rows of `width`) to its front, in order.
+pub fn keep_rows<T: Copy>(buf: &mut [T], width: usize, keep: &[u32]) {
+    for (dst, &src) in keep.iter().enumerate() {
+        let src = src as usize;
+        if src != dst {
+            buf.copy_within(src * width..(src + 1) * width, dst * width);
         }
     }
 }

@@ -2,12 +2,27 @@
 //! propagates dL/dσ and dL/dc into its gradients, and lists its parameter groups for Adam.
 //! Two models exist: a plain NeRF ([`NerfField`]) and a residual model
 //! ([`ResidualField`]: frozen background + residual + Mixnet).
+//!
+//! A model runs two ways. The batch methods ([`Model::forward`], [`Model::backward`]) take any
+//! number of samples and parallelise inside; rendering uses the forward, and the backward is
+//! the reference the fused step is tested against. The training step itself is fused
+//! ([`crate::train::trainer`]): each thread takes a *chunk* of whole rays — a few hundred
+//! samples — through [`Model::chunk_density`] → [`Model::chunk_colour`] (on the samples
+//! before each ray's opaque point) → compositing and loss → [`Model::chunk_backward`] while
+//! the chunk's activations are in L1/L2, accumulating into its [`Model::Slot`]; once all
+//! chunks are done, [`Model::finish_step`] reduces the slots in a fixed order and scatters the
+//! samples' feature gradients into the hash grids, one level per task.
 
-use crate::field::residual::{ResidualContext, ResidualField, ResidualGrads, ResidualParams};
-use crate::field::{FieldContext, NerfField, NerfGrads, NerfParams};
-use crate::mlp::Activation;
+use crate::encoding::FeatureLevels;
+use crate::field::mix::MixKind;
+use crate::field::residual::{
+    ResidualChunk, ResidualContext, ResidualField, ResidualGrads, ResidualNetGrads, ResidualParams,
+};
+use crate::field::{FieldChunk, FieldContext, NerfField, NerfGrads, NerfParams, NetGrads};
+use crate::mlp::{keep_rows, Activation};
 use crate::rng::Rng;
 use crate::simd::Isa;
+use crate::train::slots::accumulate_in_order;
 use crate::GradientMode;
 use glam::Vec3;
 
@@ -37,7 +52,7 @@ pub trait Model: Sync {
     fn init_params(&self, rng: &mut Rng) -> Self::Params;
     /// Zeroed gradients.
     fn zero_grads(&self) -> Self::Grads;
-    /// Activated density σ at `positions` (occupancy updates, pruning): the cheap path.
+    /// Activated density σ at `positions` (occupancy updates): the cheap path.
     fn density(&self, isa: Isa, p: &Self::Params, positions: &[Vec3], sigma: &mut [f32], ctx: &mut Self::Context);
     /// Activated density and colour, saving what [`Model::backward`] needs.
     #[allow(clippy::too_many_arguments)]
@@ -61,6 +76,43 @@ pub trait Model: Sync {
         d_rgb: &[[f32; 3]],
         grads: &mut Self::Grads,
     );
+    /// What one chunk of the fused step saves between its forward and backward.
+    type Chunk: Default + Send;
+    /// What one slot of the fused step accumulates over its chunks: network weight gradients
+    /// and, per trained hash grid, the samples' feature gradients ([`FeatureLevels`]).
+    type Slot: Default + Send;
+    /// Empties `slot` for a new step.
+    fn begin_slot(&self, slot: &mut Self::Slot);
+    /// Fused step, on this thread: activated density σ of a chunk's samples (encodings and
+    /// density networks), saving what the rest of the chunk needs.
+    fn chunk_density(&self, isa: Isa, p: &Self::Params, positions: &[Vec3], sigma: &mut [f32], c: &mut Self::Chunk);
+    /// Keeps rows `keep` (strictly increasing) of the last [`Model::chunk_density`] and writes
+    /// their activated colours, seen along `dirs` (one per kept row), into `rgb`.
+    #[allow(clippy::too_many_arguments)]
+    fn chunk_colour(
+        &self,
+        isa: Isa,
+        p: &Self::Params,
+        keep: &[u32],
+        dirs: &[Vec3],
+        rgb: &mut [[f32; 3]],
+        c: &mut Self::Chunk,
+    );
+    /// dL/dσ and dL/dc of the kept rows → accumulated into `slot`.
+    #[allow(clippy::too_many_arguments)]
+    fn chunk_backward(
+        &self,
+        isa: Isa,
+        p: &Self::Params,
+        c: &mut Self::Chunk,
+        d_sigma: &[f32],
+        d_rgb: &[[f32; 3]],
+        slot: &mut Self::Slot,
+    );
+    /// The step's gradients from its slots (overwriting `grads`): network gradients summed in
+    /// slot order, the grids' scattered from the slots' feature gradients in slot order — the
+    /// same bits on any thread count.
+    fn finish_step(&self, isa: Isa, slots: &[Self::Slot], grads: &mut Self::Grads);
     /// The optimiser groups, in a fixed order.
     fn groups<'a>(&self, p: &'a mut Self::Params, g: &'a Self::Grads) -> Vec<ParamGroup<'a>>;
     /// Re-derives what the optimiser's writes made stale (the MLPs' transposed copies).
@@ -88,6 +140,39 @@ fn grid_group<'a>(grid: &'a mut crate::encoding::HashGridParams, grad: &'a [f32]
 }
 
 const MLP_L2: f32 = 1e-6;
+
+/// A NeRF chunk of the fused step: the field's chunk state and the activated outputs.
+#[derive(Default)]
+pub struct NerfChunk {
+    field: FieldChunk,
+    raw: Vec<f32>,
+    sigma: Vec<f32>,
+    rgb_raw: Vec<[f32; 3]>,
+    rgb: Vec<[f32; 3]>,
+    d_raw: Vec<f32>,
+    d_rgb_raw: Vec<[f32; 3]>,
+}
+
+/// What one slot of a NeRF's fused step accumulates.
+#[derive(Default)]
+pub struct NerfSlot {
+    nets: NetGrads,
+    grid: FeatureLevels,
+}
+
+/// What one slot of a residual model's fused step accumulates.
+#[derive(Default)]
+pub struct ResidualSlot {
+    nets: ResidualNetGrads,
+    residual_grid: FeatureLevels,
+    mixnet_grid: FeatureLevels,
+}
+
+/// `out = Σ parts` in part order.
+fn reduce<'a>(parts: impl IntoIterator<Item = &'a [f32]>, out: &mut [f32]) {
+    out.fill(0.0);
+    accumulate_in_order(parts, out);
+}
 
 impl Model for NerfField {
     type Params = NerfParams;
@@ -163,6 +248,75 @@ impl Model for NerfField {
         NerfField::backward(self, isa, p, &mut ctx.field, &ctx.d_raw, &ctx.d_rgb_raw, grads, GradientMode::Overwrite);
     }
 
+    type Chunk = NerfChunk;
+    type Slot = NerfSlot;
+
+    fn begin_slot(&self, slot: &mut NerfSlot) {
+        slot.nets.clear(self);
+        slot.grid.clear();
+    }
+
+    fn chunk_density(&self, isa: Isa, p: &NerfParams, positions: &[Vec3], sigma: &mut [f32], c: &mut NerfChunk) {
+        c.raw.resize(positions.len(), 0.0);
+        NerfField::chunk_density(self, isa, p, positions, &mut c.raw, &mut c.field);
+        for (s, &r) in sigma.iter_mut().zip(&c.raw) {
+            *s = Activation::TruncExp.forward(r);
+        }
+        c.sigma.clear();
+        c.sigma.extend_from_slice(sigma);
+    }
+
+    fn chunk_colour(
+        &self,
+        isa: Isa,
+        p: &NerfParams,
+        keep: &[u32],
+        dirs: &[Vec3],
+        rgb: &mut [[f32; 3]],
+        c: &mut NerfChunk,
+    ) {
+        let n = keep.len();
+        self.chunk_keep(&mut c.field, keep);
+        keep_rows(&mut c.sigma, 1, keep);
+        c.sigma.truncate(n);
+        c.rgb_raw.resize(n, [0.0; 3]);
+        NerfField::chunk_colour(self, isa, p, dirs, &mut c.rgb_raw, &mut c.field);
+        for (o, r) in rgb.iter_mut().zip(&c.rgb_raw) {
+            *o = r.map(|v| Activation::Sigmoid.forward(v));
+        }
+        c.rgb.clear();
+        c.rgb.extend_from_slice(rgb);
+    }
+
+    fn chunk_backward(
+        &self,
+        isa: Isa,
+        p: &NerfParams,
+        c: &mut NerfChunk,
+        d_sigma: &[f32],
+        d_rgb: &[[f32; 3]],
+        slot: &mut NerfSlot,
+    ) {
+        let n = c.sigma.len();
+        c.d_raw.resize(n, 0.0);
+        c.d_rgb_raw.resize(n, [0.0; 3]);
+        for i in 0..n {
+            c.d_raw[i] = d_sigma[i] * Activation::TruncExp.derivative_from_output(c.sigma[i]);
+            c.d_rgb_raw[i] =
+                std::array::from_fn(|k| d_rgb[i][k] * Activation::Sigmoid.derivative_from_output(c.rgb[i][k]));
+        }
+        NerfField::chunk_backward(self, isa, p, &mut c.field, &c.d_raw, &c.d_rgb_raw, &mut slot.nets);
+        let grid = self.grid();
+        slot.grid.append(c.field.unit(), c.field.feature_grad(), grid.output_width(), grid.levels().len());
+    }
+
+    fn finish_step(&self, isa: Isa, slots: &[NerfSlot], grads: &mut NerfGrads) {
+        reduce(slots.iter().map(|s| s.nets.density.as_slice()), &mut grads.density);
+        reduce(slots.iter().map(|s| s.nets.colour.as_slice()), &mut grads.colour);
+        let parts: Vec<_> = slots.iter().map(|s| &s.grid).collect();
+        self.grid().backward_params_levels(isa, &parts, &mut grads.grid, GradientMode::Overwrite);
+    }
+
     fn groups<'a>(&self, p: &'a mut NerfParams, g: &'a NerfGrads) -> Vec<ParamGroup<'a>> {
         vec![
             grid_group(&mut p.grid, &g.grid),
@@ -217,6 +371,72 @@ impl Model for ResidualField {
         grads: &mut ResidualGrads,
     ) {
         ResidualField::backward(self, isa, p, ctx, d_sigma, d_rgb, grads, GradientMode::Overwrite);
+    }
+
+    type Chunk = ResidualChunk;
+    type Slot = ResidualSlot;
+
+    fn begin_slot(&self, slot: &mut ResidualSlot) {
+        slot.nets.residual.clear(self.residual());
+        slot.nets.mixnet.clear();
+        slot.nets.mixnet.resize(self.mixnet().mlp().n_params(), 0.0);
+        slot.residual_grid.clear();
+        slot.mixnet_grid.clear();
+    }
+
+    fn chunk_density(
+        &self,
+        isa: Isa,
+        p: &ResidualParams,
+        positions: &[Vec3],
+        sigma: &mut [f32],
+        c: &mut ResidualChunk,
+    ) {
+        ResidualField::chunk_density(self, isa, p, positions, sigma, c);
+    }
+
+    fn chunk_colour(
+        &self,
+        isa: Isa,
+        p: &ResidualParams,
+        keep: &[u32],
+        dirs: &[Vec3],
+        rgb: &mut [[f32; 3]],
+        c: &mut ResidualChunk,
+    ) {
+        ResidualField::chunk_colour(self, isa, p, keep, dirs, rgb, c);
+    }
+
+    fn chunk_backward(
+        &self,
+        isa: Isa,
+        p: &ResidualParams,
+        c: &mut ResidualChunk,
+        d_sigma: &[f32],
+        d_rgb: &[[f32; 3]],
+        slot: &mut ResidualSlot,
+    ) {
+        ResidualField::chunk_backward(self, isa, p, c, d_sigma, d_rgb, &mut slot.nets);
+        let grid = self.residual().grid();
+        let (res, levels) = (c.residual(), grid.levels().len());
+        slot.residual_grid.append(res.unit(), res.feature_grad(), grid.output_width(), levels);
+        if let (MixKind::Mixnet(_), Some(grid)) = (self.kind(), self.mixnet().grid()) {
+            let mix = c.mixnet();
+            slot.mixnet_grid.append(mix.unit(), mix.feature_grad(), grid.output_width(), grid.levels().len());
+        }
+    }
+
+    fn finish_step(&self, isa: Isa, slots: &[ResidualSlot], grads: &mut ResidualGrads) {
+        let g = &mut grads.residual;
+        reduce(slots.iter().map(|s| s.nets.residual.density.as_slice()), &mut g.density);
+        reduce(slots.iter().map(|s| s.nets.residual.colour.as_slice()), &mut g.colour);
+        reduce(slots.iter().map(|s| s.nets.mixnet.as_slice()), &mut grads.mixnet.mlp);
+        let parts: Vec<_> = slots.iter().map(|s| &s.residual_grid).collect();
+        self.residual().grid().backward_params_levels(isa, &parts, &mut g.grid, GradientMode::Overwrite);
+        if let Some(grid) = self.mixnet().grid() {
+            let parts: Vec<_> = slots.iter().map(|s| &s.mixnet_grid).collect();
+            grid.backward_params_levels(isa, &parts, &mut grads.mixnet.grid, GradientMode::Overwrite);
+        }
     }
 
     fn groups<'a>(&self, p: &'a mut ResidualParams, g: &'a ResidualGrads) -> Vec<ParamGroup<'a>> {

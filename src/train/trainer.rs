@@ -4,14 +4,21 @@
 //! [`TrainConfig::occupancy_interval`] steps the occupancy grid is refreshed through the
 //! field's density-only path.
 //!
+//! The step is fused: the rays are cut into [`SLOTS`] fixed groups; a thread takes a group
+//! and walks it in chunks of whole rays (at least [`CHUNK_SAMPLES`] marched samples), each
+//! chunk marched, run through the densities, cut at each ray's opaque point, run through the
+//! colours, composited, and back-propagated to its feature gradients before the next chunk
+//! starts — so a sample's activations never leave L1/L2 ([`crate::train::model`]). The grids'
+//! gradients are scattered once per step from the gathered feature gradients.
+//!
 //! A run is a [`Trainer`] stepped by its caller, who decides between steps what to log,
 //! evaluate or checkpoint; [`train_model`] is the plain loop. A step whose loss or gradients are
 //! not finite is skipped (nothing changes); too many in a row, or too many steps in which no
 //! ray reaches an occupied cell, end the run with a [`TrainError`].
 //!
-//! Determinism: ray sampling draws from `Rng::stream(seed, step)`, marching and compositing
-//! are per ray in ray order, the field reduces in fixed slots — same seed, same bits on any
-//! thread count. All that carries over between steps is the [`TrainState`] (parameters,
+//! Determinism: ray sampling draws from `Rng::stream(seed, step)`; a slot's rays, its chunks
+//! and the order it accumulates in depend only on the data; slots reduce in slot order —
+//! same seed, same bits on any thread count. All that carries over between steps is the [`TrainState`] (parameters,
 //! occupancy grid, Adam moments, step), so a run resumed from a saved state continues
 //! bit-exactly.
 
@@ -142,132 +149,169 @@ pub fn scale_near_gradients(t: &[f32], distance: f32, d_sigma: &mut [f32], d_rgb
     }
 }
 
-/// Reusable buffers of one step.
+/// The step's rays, their target colours and the colours behind them.
 #[derive(Default)]
-struct StepBuffers {
+struct StepRays {
     rays: Vec<Ray>,
     targets: Vec<[f32; 3]>,
     backgrounds: Vec<[f32; 3]>,
+}
+
+/// Marched samples a chunk of the fused step holds at least (it takes whole rays, so it ends
+/// with the rest of its last ray). Small enough that a chunk's activations (~1 KiB a sample)
+/// stay in L1/L2 between its forward and backward: the MLPs run 1.6× faster on 64-row
+/// batches than on 16 384-row ones (BENCHMARKS.md, session 6).
+pub const CHUNK_SAMPLES: usize = 128;
+
+/// One slot's share of a fused step: its chunk's buffers, reused from step to step.
+struct Worker<C> {
+    chunk: C,
     marched: PackedSamples,
-    marched_pos: Vec<Vec3>,
-    marched_dirs: Vec<Vec3>,
-    samples: PackedSamples,
     positions: Vec<Vec3>,
     dirs: Vec<Vec3>,
     sigma: Vec<f32>,
+    keep: Vec<u32>,
+    kept: Vec<(u32, u32)>,
     rgb: Vec<[f32; 3]>,
     d_sigma: Vec<f32>,
     d_rgb: Vec<[f32; 3]>,
+    scratch: Vec<f32>,
+    /// This step's summed squared error, marched and kept samples.
+    loss: f64,
+    n_marched: usize,
+    n_kept: usize,
 }
 
-/// Marches `rays` into `out` (packed in ray order) and fills per-sample positions and directions.
-pub fn march_rays(
-    occ: &OccupancyGrid,
-    rays: &[Ray],
-    out: &mut PackedSamples,
-    positions: &mut Vec<Vec3>,
-    dirs: &mut Vec<Vec3>,
-) {
-    out.clear();
-    for r in rays {
-        occ.march(r.origin, r.dir, out);
-    }
-    positions.clear();
-    dirs.clear();
-    for (r, &(start, count)) in rays.iter().zip(&out.rays) {
-        for &t in &out.t[start as usize..(start + count) as usize] {
-            positions.push(r.at(t));
-            dirs.push(r.dir);
+impl<C: Default> Default for Worker<C> {
+    fn default() -> Self {
+        Worker {
+            chunk: C::default(),
+            marched: PackedSamples::default(),
+            positions: Vec::new(),
+            dirs: Vec::new(),
+            sigma: Vec::new(),
+            keep: Vec::new(),
+            kept: Vec::new(),
+            rgb: Vec::new(),
+            d_sigma: Vec::new(),
+            d_rgb: Vec::new(),
+            scratch: Vec::new(),
+            loss: 0.0,
+            n_marched: 0,
+            n_kept: 0,
         }
     }
 }
 
-/// Samples per ray up to its opaque point (the samples [`composite_ray`] uses), given the
-/// densities `sigma` of `samples`, summed over the rays.
-fn count_until_opaque(samples: &PackedSamples, sigma: &[f32]) -> usize {
-    let mut kept = 0;
-    for &(s0, count) in &samples.rays {
-        let mut acc = RayAccumulator::new();
-        for i in s0 as usize..(s0 + count) as usize {
-            if acc.is_opaque() {
-                break;
+/// What a slot's chunks read: the model and its parameters, the grid, the settings.
+struct StepInputs<'a, M: Model> {
+    isa: Isa,
+    model: &'a M,
+    params: &'a M::Params,
+    occupancy: &'a OccupancyGrid,
+    cfg: &'a TrainConfig,
+}
+
+impl<C> Worker<C> {
+    /// Runs the slot's `rays` chunk by chunk into `slot`.
+    fn run<M: Model<Chunk = C>>(
+        &mut self,
+        x: &StepInputs<M>,
+        rays: &StepRays,
+        range: std::ops::Range<usize>,
+        slot: &mut M::Slot,
+    ) {
+        (self.loss, self.n_marched, self.n_kept) = (0.0, 0, 0);
+        x.model.begin_slot(slot);
+        self.marched.clear();
+        let mut first = range.start;
+        for i in range.clone() {
+            let r = &rays.rays[i];
+            x.occupancy.march(r.origin, r.dir, &mut self.marched);
+            if self.marched.len() >= CHUNK_SAMPLES || i + 1 == range.end {
+                self.run_chunk(x, rays, first..i + 1, slot);
+                self.marched.clear();
+                first = i + 1;
             }
-            acc.push(sigma[i], samples.delta[i], 0.0, [0.0; 3]);
-            kept += 1;
         }
     }
-    kept
-}
 
-/// The pruning pass pays (one density-only evaluation of every marched sample, ~⅓ of a full
-/// sample's cost) only when it drops more than this fraction of the samples; otherwise the
-/// next step sends every marched sample through the full forward/backward (the dropped ones
-/// would get zero gradients anyway).
-pub const PRUNE_WHEN_DROPPING: f32 = 0.3;
-
-/// Copies each ray's samples of `marched` up to its opaque point — the samples
-/// [`composite_ray`] uses, given densities `sigma` — into `out`, `positions`, `dirs`.
-fn keep_until_opaque(
-    marched: &PackedSamples,
-    marched_pos: &[Vec3],
-    marched_dirs: &[Vec3],
-    sigma: &[f32],
-    out: &mut PackedSamples,
-    positions: &mut Vec<Vec3>,
-    dirs: &mut Vec<Vec3>,
-) {
-    out.clear();
-    positions.clear();
-    dirs.clear();
-    for &(s0, count) in &marched.rays {
-        let start = out.t.len() as u32;
-        let mut acc = RayAccumulator::new();
-        for i in s0 as usize..(s0 + count) as usize {
-            if acc.is_opaque() {
-                break;
+    /// One chunk: the rays `range`, marched into `self.marched`.
+    fn run_chunk<M: Model<Chunk = C>>(
+        &mut self,
+        x: &StepInputs<M>,
+        rays: &StepRays,
+        range: std::ops::Range<usize>,
+        slot: &mut M::Slot,
+    ) {
+        let (cfg, m) = (x.cfg, &mut self.marched);
+        let n = m.len();
+        self.n_marched += n;
+        // Densities of every marched sample.
+        self.positions.clear();
+        self.dirs.clear();
+        for (r, &(s0, count)) in rays.rays[range.clone()].iter().zip(&m.rays) {
+            for &t in &m.t[s0 as usize..(s0 + count) as usize] {
+                self.positions.push(r.at(t));
+                self.dirs.push(r.dir);
             }
-            acc.push(sigma[i], marched.delta[i], 0.0, [0.0; 3]);
-            out.t.push(marched.t[i]);
-            out.delta.push(marched.delta[i]);
-            positions.push(marched_pos[i]);
-            dirs.push(marched_dirs[i]);
         }
-        out.rays.push((start, out.t.len() as u32 - start));
+        self.sigma.resize(n, 0.0);
+        if n > 0 {
+            x.model.chunk_density(x.isa, x.params, &self.positions, &mut self.sigma, &mut self.chunk);
+        }
+        // Keep each ray's samples up to its opaque point (T < 1e-4): compositing ignores the
+        // rest, so colours and gradients are only computed for these (nerfacc's early stop).
+        self.keep.clear();
+        self.kept.clear();
+        for &(s0, count) in &m.rays {
+            let start = self.keep.len() as u32;
+            let mut acc = RayAccumulator::new();
+            for i in s0..s0 + count {
+                if acc.is_opaque() {
+                    break;
+                }
+                acc.push(self.sigma[i as usize], m.delta[i as usize], 0.0, [0.0; 3]);
+                self.keep.push(i);
+            }
+            self.kept.push((start, self.keep.len() as u32 - start));
+        }
+        let k = self.keep.len();
+        self.n_kept += k;
+        for v in [&mut m.t, &mut m.delta, &mut self.sigma] {
+            crate::mlp::keep_rows(v, 1, &self.keep);
+            v.truncate(k);
+        }
+        crate::mlp::keep_rows(&mut self.dirs, 1, &self.keep);
+        self.dirs.truncate(k);
+        self.rgb.resize(k, [0.0; 3]);
+        if k > 0 {
+            x.model.chunk_colour(x.isa, x.params, &self.keep, &self.dirs, &mut self.rgb, &mut self.chunk);
+        }
+        // Composite, loss, and back through compositing, ray by ray.
+        self.d_sigma.resize(k, 0.0);
+        self.d_rgb.resize(k, [0.0; 3]);
+        let scale = 2.0 / (3 * cfg.rays_per_step) as f32;
+        for (ray, &(s0, count)) in range.zip(&self.kept) {
+            let r = s0 as usize..(s0 + count) as usize;
+            let (sigma, delta, t) = (&self.sigma[r.clone()], &m.delta[r.clone()], &m.t[r.clone()]);
+            let c = composite_ray(sigma, delta, t, &self.rgb[r.clone()], rays.backgrounds[ray]);
+            let err: [f32; 3] = std::array::from_fn(|i| c.rgb[i] - rays.targets[ray][i]);
+            self.loss += err.iter().map(|e| (e * e) as f64).sum::<f64>();
+            let (d_s, d_c) = (&mut self.d_sigma[r.clone()], &mut self.d_rgb[r.clone()]);
+            composite_ray_backward(sigma, delta, &self.rgb[r.clone()], &c, err.map(|e| e * scale), d_s, d_c);
+            if cfg.distortion > 0.0 {
+                let weight = cfg.distortion / cfg.rays_per_step as f32;
+                distortion_backward(sigma, delta, t, weight, d_s, &mut self.scratch);
+            }
+            if cfg.near_gradient_distance > 0.0 {
+                scale_near_gradients(t, cfg.near_gradient_distance, d_s, d_c);
+            }
+        }
+        if k > 0 {
+            x.model.chunk_backward(x.isa, x.params, &mut self.chunk, &self.d_sigma, &self.d_rgb, slot);
+        }
     }
-}
-
-/// A group of consecutive rays and the contiguous range of their samples.
-struct RayGroup {
-    rays: std::ops::Range<usize>,
-    samples: std::ops::Range<usize>,
-}
-
-/// Cuts the packed rays into [`SLOTS`] groups of consecutive rays (boundaries depend only on
-/// the ray count, so the work split is the same on any thread count).
-fn ray_groups(rays: &[(u32, u32)]) -> Vec<RayGroup> {
-    (0..SLOTS)
-        .map(|g| {
-            let r = slot_range(rays.len(), g);
-            let first = rays.get(r.start).map_or(0, |x| x.0 as usize);
-            let last = if r.is_empty() { first } else { (rays[r.end - 1].0 + rays[r.end - 1].1) as usize };
-            RayGroup { samples: first..last, rays: r }
-        })
-        .collect()
-}
-
-/// Disjoint mutable slices of `buf` for each group's sample range (ranges are consecutive).
-fn split_at_bounds<'a, T>(buf: &'a mut [T], groups: &[RayGroup]) -> Vec<&'a mut [T]> {
-    let mut parts = Vec::with_capacity(groups.len());
-    let mut rest = buf;
-    let mut at = 0;
-    for g in groups {
-        let (_, tail) = rest.split_at_mut(g.samples.start - at);
-        let (head, tail) = tail.split_at_mut(g.samples.len());
-        parts.push(head);
-        rest = tail;
-        at = g.samples.end;
-    }
-    parts
 }
 
 /// Trains a NeRF of `field_config` on `views`; `log` receives stats every `log_every` steps
@@ -380,9 +424,6 @@ pub struct TrainState<P> {
     pub skipped: u32,
     /// Seconds spent training so far (informational; not part of the bits).
     pub seconds: f64,
-    /// Whether the next step runs the pruning pass (decided from this step's share of
-    /// samples past the opaque point; [`PRUNE_WHEN_DROPPING`]).
-    pub prune: bool,
 }
 
 /// A training run, one [`Trainer::step`] at a time: the caller decides between steps whether
@@ -394,7 +435,9 @@ pub struct Trainer<'a, M: Model> {
     cfg: &'a TrainConfig,
     state: TrainState<M::Params>,
     grads: M::Grads,
-    buf: StepBuffers,
+    rays: StepRays,
+    workers: Vec<Worker<M::Chunk>>,
+    slots: Vec<M::Slot>,
     ctx: M::Context,
     bad_in_a_row: u32,
     empty_in_a_row: u32,
@@ -414,7 +457,7 @@ impl<'a, M: Model> Trainer<'a, M> {
             .collect();
         model.after_step(&mut params);
         let occupancy = OccupancyGrid::new(aabb, cfg.occupancy.clone());
-        let state = TrainState { step: 0, params, occupancy, adams, skipped: 0, seconds: 0.0, prune: true };
+        let state = TrainState { step: 0, params, occupancy, adams, skipped: 0, seconds: 0.0 };
         Self::from_state(isa, model, views, cfg, state).expect("a fresh state fits its model")
     }
 
@@ -440,8 +483,23 @@ impl<'a, M: Model> Trainer<'a, M> {
         if state.step > cfg.steps {
             return Err(format!("state is at step {}, past the run's {} steps", state.step, cfg.steps));
         }
-        let (buf, ctx) = (StepBuffers::default(), M::Context::default());
-        Ok(Trainer { isa, model, views, cfg, state, grads, buf, ctx, bad_in_a_row: 0, empty_in_a_row: 0 })
+        let (rays, ctx) = (StepRays::default(), M::Context::default());
+        let workers = (0..SLOTS).map(|_| Worker::default()).collect();
+        let slots = (0..SLOTS).map(|_| M::Slot::default()).collect();
+        Ok(Trainer {
+            isa,
+            model,
+            views,
+            cfg,
+            state,
+            grads,
+            rays,
+            workers,
+            slots,
+            ctx,
+            bad_in_a_row: 0,
+            empty_in_a_row: 0,
+        })
     }
 
     /// The run's settings.
@@ -489,7 +547,7 @@ impl<'a, M: Model> Trainer<'a, M> {
 
     fn step_inner(&mut self) -> Result<StepStats, TrainError> {
         let (isa, model, views, cfg) = (self.isa, self.model, self.views, self.cfg);
-        let Trainer { state, grads, buf, ctx, bad_in_a_row, empty_in_a_row, .. } = self;
+        let Trainer { state, grads, rays, workers, slots, ctx, bad_in_a_row, empty_in_a_row, .. } = self;
         let step = state.step;
         let params = &mut state.params;
         let occupancy = &mut state.occupancy;
@@ -499,62 +557,43 @@ impl<'a, M: Model> Trainer<'a, M> {
         }
         // 1. Rays: uniform over all pixels of all views.
         let mut srng = Rng::stream(cfg.seed, step as u64);
-        buf.rays.clear();
-        buf.targets.clear();
-        buf.backgrounds.clear();
+        rays.rays.clear();
+        rays.targets.clear();
+        rays.backgrounds.clear();
         for _ in 0..cfg.rays_per_step {
             let v = &views[srng.below(views.len() as u64) as usize];
             let (w, h) = (v.intrinsics.width, v.intrinsics.height);
             let p = srng.below(w as u64 * h as u64) as u32;
-            buf.rays.push(pixel_ray(&v.intrinsics, &v.pose, p % w, p / w));
-            buf.targets.push(v.rgb[p as usize]);
-            buf.backgrounds.push(match cfg.random_background {
+            rays.rays.push(pixel_ray(&v.intrinsics, &v.pose, p % w, p / w));
+            rays.targets.push(v.rgb[p as usize]);
+            rays.backgrounds.push(match cfg.random_background {
                 true => std::array::from_fn(|_| srng.uniform(0.0, 1.0)),
                 false => cfg.background,
             });
         }
-        // 2. March; drop the samples behind each ray's opaque point (T < 1e-4): a density-only
-        //    pass finds them; compositing ignores them anyway, so the result is unchanged and
-        //    the full forward/backward runs on the samples that matter (nerfacc's early stop).
-        //    When the last step showed the pass would drop few samples, skip it.
-        march_rays(occupancy, &buf.rays, &mut buf.marched, &mut buf.marched_pos, &mut buf.marched_dirs);
-        let marched = buf.marched.len();
+        // 2. The fused pass: each slot's rays, chunk by chunk, marched, evaluated, composited
+        //    and back-propagated to the networks' and the grids' feature gradients.
+        let inputs = StepInputs { isa, model, params: &*params, occupancy: &*occupancy, cfg };
+        let rays = &*rays;
+        workers
+            .par_iter_mut()
+            .zip(slots.par_iter_mut())
+            .enumerate()
+            .for_each(|(s, (w, slot))| w.run(&inputs, rays, slot_range(rays.rays.len(), s), slot));
+        let loss: f64 = workers.iter().map(|w| w.loss).sum();
+        let marched: usize = workers.iter().map(|w| w.n_marched).sum();
+        let n: usize = workers.iter().map(|w| w.n_kept).sum();
         *empty_in_a_row = if marched == 0 { *empty_in_a_row + 1 } else { 0 };
         if *empty_in_a_row >= MAX_EMPTY_STEPS_IN_A_ROW {
             return Err(TrainError::NoLiveSamples { step, aabb: *occupancy.aabb(), occupancy: occupancy.occupancy() });
         }
-        if state.prune {
-            buf.sigma.resize(marched, 0.0);
-            model.density(isa, params, &buf.marched_pos, &mut buf.sigma, ctx);
-            keep_until_opaque(
-                &buf.marched,
-                &buf.marched_pos,
-                &buf.marched_dirs,
-                &buf.sigma,
-                &mut buf.samples,
-                &mut buf.positions,
-                &mut buf.dirs,
-            );
-        } else {
-            std::mem::swap(&mut buf.samples, &mut buf.marched);
-            std::mem::swap(&mut buf.positions, &mut buf.marched_pos);
-            std::mem::swap(&mut buf.dirs, &mut buf.marched_dirs);
-        }
-        // 3. Forward: activated density and colour per sample.
-        let n = buf.positions.len();
-        buf.sigma.resize(n, 0.0);
-        buf.rgb.resize(n, [0.0; 3]);
-        model.forward(isa, params, &buf.positions, &buf.dirs, &mut buf.sigma, &mut buf.rgb, ctx);
-        let kept = if state.prune { n } else { count_until_opaque(&buf.samples, &buf.sigma) };
-        state.prune = (kept as f32) < (1.0 - PRUNE_WHEN_DROPPING) * marched as f32;
-        // 4. Composite, loss, and back through compositing.
-        let loss = composite_and_loss_backward(cfg, buf);
-        // 5. Backward through the model; a non-finite loss or gradient skips the step (the
-        //    parameters, moments and step count of Adam stay as they were).
-        model.backward(isa, params, ctx, &buf.d_sigma, &buf.d_rgb, grads);
+        // 3. The step's gradients: the slots' network gradients in slot order, the grids'
+        //    scattered from the gathered feature gradients. A non-finite loss or gradient skips
+        //    the step (the parameters, moments and step count of Adam stay as they were).
+        model.finish_step(isa, slots, grads);
         let finite = loss.is_finite() && model.groups(params, grads).iter().all(|g| all_finite(g.grad));
         if finite {
-            // 6. Adam on every parameter group.
+            // 4. Adam on every parameter group.
             let lr = cfg.schedule.lr(step);
             for (adam, g) in state.adams.iter_mut().zip(model.groups(params, grads)) {
                 adam.step(isa, lr, g.master, g.grad, g.mirror);
@@ -587,71 +626,6 @@ impl<'a, M: Model> Trainer<'a, M> {
 fn all_finite(x: &[f32]) -> bool {
     const EXP: u32 = 0x7f80_0000;
     x.par_chunks(1 << 16).all(|c| c.iter().fold(0u32, |acc, v| acc | ((v.to_bits() & EXP == EXP) as u32)) == 0)
-}
-
-/// Composites the step's rays (Eq. 2), takes the loss (Eq. 4) and the regularisers, and fills
-/// `buf.d_sigma` / `buf.d_rgb`; returns the summed squared error. Rays are processed in
-/// [`SLOTS`] fixed groups whose samples are contiguous, each group writing its own slices of
-/// the step buffers (no per-ray allocation; the same sums on any thread count).
-fn composite_and_loss_backward(cfg: &TrainConfig, buf: &mut StepBuffers) -> f64 {
-    let n = buf.positions.len();
-    buf.d_sigma.resize(n, 0.0);
-    buf.d_rgb.resize(n, [0.0; 3]);
-    let scale = 2.0 / (3 * cfg.rays_per_step) as f32;
-    let (samples, sigma, rgb, targets) = (&buf.samples, &buf.sigma, &buf.rgb, &buf.targets);
-    let backgrounds = &buf.backgrounds;
-    let groups = ray_groups(&samples.rays);
-    let d_sigma_parts = split_at_bounds(&mut buf.d_sigma, &groups);
-    let d_rgb_parts = split_at_bounds(&mut buf.d_rgb, &groups);
-    let losses: Vec<f64> = groups
-        .par_iter()
-        .zip(d_sigma_parts)
-        .zip(d_rgb_parts)
-        .map(|((g, d_s), d_c)| {
-            let mut loss = 0.0f64;
-            let mut scratch = Vec::new();
-            let base = g.samples.start;
-            for ray in g.rays.clone() {
-                let (s0, cnt) = samples.rays[ray];
-                let r = s0 as usize..(s0 + cnt) as usize;
-                let local = r.start - base..r.end - base;
-                let c = composite_ray(
-                    &sigma[r.clone()],
-                    &samples.delta[r.clone()],
-                    &samples.t[r.clone()],
-                    &rgb[r.clone()],
-                    backgrounds[ray],
-                );
-                let err: [f32; 3] = std::array::from_fn(|k| c.rgb[k] - targets[ray][k]);
-                loss += err.iter().map(|e| (e * e) as f64).sum::<f64>();
-                composite_ray_backward(
-                    &sigma[r.clone()],
-                    &samples.delta[r.clone()],
-                    &rgb[r.clone()],
-                    &c,
-                    err.map(|e| e * scale),
-                    &mut d_s[local.clone()],
-                    &mut d_c[local.clone()],
-                );
-                if cfg.distortion > 0.0 {
-                    distortion_backward(
-                        &sigma[r.clone()],
-                        &samples.delta[r.clone()],
-                        &samples.t[r.clone()],
-                        cfg.distortion / cfg.rays_per_step as f32,
-                        &mut d_s[local.clone()],
-                        &mut scratch,
-                    );
-                }
-                if cfg.near_gradient_distance > 0.0 {
-                    let (ds, dc) = (&mut d_s[local.clone()], &mut d_c[local]);
-                    scale_near_gradients(&samples.t[r], cfg.near_gradient_distance, ds, dc);
-                }
-            }
-            loss
-        })
-        .collect();
-    losses.iter().sum()
 }
 
 /// Trains `model` on `views` inside `aabb` from fresh parameters (seeded by `cfg.seed`);

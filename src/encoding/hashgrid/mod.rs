@@ -212,11 +212,50 @@ impl HashGrid {
         mode: GradientMode,
     ) {
         self.check(self.entries, positions.len(), d_out.len());
+        let width = self.output_width();
+        self.scatter(isa, grads, mode, |l, each| {
+            if !positions.is_empty() {
+                each(positions, &d_out[2 * l..], width)
+            }
+        });
+    }
+
+    /// [`HashGrid::backward_params`] of a batch held in parts in the level-major layout
+    /// ([`FeatureLevels`], e.g. one per slot of the fused training step), scattered part by
+    /// part in the order given — the same sums as one concatenated batch. Each level's task
+    /// streams 8 bytes of gradient per sample instead of a 64-byte line of the row-major
+    /// layout.
+    pub fn backward_params_levels(&self, isa: Isa, parts: &[&FeatureLevels], grads: &mut [f32], mode: GradientMode) {
+        // A part that never received a sample has no level buffers yet.
+        let parts: Vec<&FeatureLevels> = parts.iter().copied().filter(|p| !p.unit.is_empty()).collect();
+        for part in &parts {
+            assert_eq!(part.levels.len(), self.levels.len(), "hash grid: feature gradient has the wrong level count");
+            assert!(
+                part.levels.iter().all(|d| d.len() == 2 * part.unit.len()),
+                "hash grid: feature gradient is not 2 floats per sample and level"
+            );
+        }
+        self.scatter(isa, grads, mode, |l, each| {
+            for part in &parts {
+                each(&part.unit, &part.levels[l], 2);
+            }
+        });
+    }
+
+    /// Per level (one rayon task each): zero the level's gradient slice if `mode` overwrites,
+    /// then scatter every `(positions, d, stride)` batch `parts` hands out for that level
+    /// (`d[i · stride + f]`: sample i's gradient of feature f at that level).
+    fn scatter(
+        &self,
+        isa: Isa,
+        grads: &mut [f32],
+        mode: GradientMode,
+        parts: impl Fn(usize, &mut dyn FnMut(&[[f32; 3]], &[f32], usize)) + Sync,
+    ) {
         assert_eq!(grads.len(), self.n_params(), "hash grid: gradient buffer has the wrong length");
         if mode == GradientMode::Ignore {
             return;
         }
-        let width = self.output_width();
         let mut slices = Vec::with_capacity(self.levels.len());
         let mut rest = grads;
         for level in &self.levels {
@@ -230,17 +269,19 @@ impl HashGrid {
             }
             let level = &self.levels[l];
             let mut soa = Soa::default();
-            for (c, pos) in positions.chunks(CHUNK).enumerate() {
-                soa.fill(pos);
-                let d = &d_out[c * CHUNK * width + 2 * l..];
-                match isa.level() {
-                    #[cfg(target_arch = "x86_64")]
-                    CpuLevel::Avx2 => avx2::backward_level(isa, level, g, &soa, pos.len(), d, width),
-                    #[cfg(target_arch = "aarch64")]
-                    CpuLevel::Neon => neon::backward_level(isa, level, g, &soa, pos.len(), d, width),
-                    _ => scalar::backward_level(level, g, &soa, pos.len(), d, width),
+            parts(l, &mut |positions, d_out, stride| {
+                for (c, pos) in positions.chunks(CHUNK).enumerate() {
+                    soa.fill(pos);
+                    let d = &d_out[c * CHUNK * stride..];
+                    match isa.level() {
+                        #[cfg(target_arch = "x86_64")]
+                        CpuLevel::Avx2 => avx2::backward_level(isa, level, g, &soa, pos.len(), d, stride),
+                        #[cfg(target_arch = "aarch64")]
+                        CpuLevel::Neon => neon::backward_level(isa, level, g, &soa, pos.len(), d, stride),
+                        _ => scalar::backward_level(level, g, &soa, pos.len(), d, stride),
+                    }
                 }
-            }
+            });
         });
     }
 
@@ -271,6 +312,35 @@ impl HashGrid {
 }
 
 /// A chunk of positions as structure-of-arrays, padded with zeros to a multiple of 8 lanes.
+/// dL/d(encoding) of a batch in the level-major layout the fused training step gathers: the
+/// samples' unit positions and, per level, their 2 feature gradients in sample order.
+#[derive(Clone, Debug, Default)]
+pub struct FeatureLevels {
+    /// Unit-cube positions.
+    pub unit: Vec<[f32; 3]>,
+    /// Per level: `2 × unit.len()` gradients.
+    pub levels: Vec<Vec<f32>>,
+}
+
+impl FeatureLevels {
+    /// Empties the batch, keeping its buffers.
+    pub fn clear(&mut self) {
+        self.unit.clear();
+        self.levels.iter_mut().for_each(Vec::clear);
+    }
+
+    /// Appends samples at `unit` with their row-major gradients `d_rows` (`unit.len()` rows of
+    /// `width`, the grid's output width; `levels` levels of 2 features first).
+    pub fn append(&mut self, unit: &[[f32; 3]], d_rows: &[f32], width: usize, levels: usize) {
+        assert_eq!(d_rows.len(), unit.len() * width, "hash grid: feature gradient is not rows × width");
+        self.unit.extend_from_slice(unit);
+        self.levels.resize_with(levels, Vec::new);
+        for (l, d) in self.levels.iter_mut().enumerate() {
+            d.extend(d_rows.chunks_exact(width).flat_map(|row| [row[2 * l], row[2 * l + 1]]));
+        }
+    }
+}
+
 pub(crate) struct Soa {
     pub x: [f32; CHUNK],
     pub y: [f32; CHUNK],

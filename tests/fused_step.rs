@@ -1,0 +1,136 @@
+//! The fused training step's chunk path (chunk density → keep → chunk colour → chunk backward
+//! → finish) against the batch path (forward → backward) on the same kept samples: the same
+//! densities and colours, and the same gradients in every parameter group (up to the order of
+//! floating-point sums), for the NeRF and for the residual model with each Mixnet encoding.
+
+use glam::Vec3;
+use residual_nerf::encoding::HashGridConfig;
+use residual_nerf::field::mix::{DensityMix, MixKind};
+use residual_nerf::field::mixnet::MixnetEncoding;
+use residual_nerf::field::residual::{ResidualConfig, ResidualField};
+use residual_nerf::field::{Nerf, NerfConfig, NerfField};
+use residual_nerf::render::{Aabb, OccupancyConfig, OccupancyGrid};
+use residual_nerf::rng::Rng;
+use residual_nerf::simd::Isa;
+use residual_nerf::train::model::Model;
+
+fn grid() -> HashGridConfig {
+    HashGridConfig { levels: 6, log2_table_size: 10, base_resolution: 4, finest_resolution: 64 }
+}
+
+fn aabb() -> Aabb {
+    Aabb { min: Vec3::splat(-1.0), max: Vec3::splat(1.0) }
+}
+
+/// A random NeRF with a lively grid (densities and colours far from constant).
+fn nerf(rng: &mut Rng) -> Nerf {
+    let field = NerfField::new(NerfConfig { grid: grid(), aabb: aabb() });
+    let mut params = field.init_params(rng);
+    params.grid.master.iter_mut().for_each(|v| *v = rng.uniform(-1.0, 1.0));
+    params.grid.sync_mirror();
+    let occupancy = OccupancyGrid::new(aabb(), OccupancyConfig { resolution: 4, ..Default::default() });
+    Nerf { field, params, occupancy }
+}
+
+fn close(what: &str, got: &[f32], want: &[f32], rel: f32) {
+    assert_eq!(got.len(), want.len(), "{what}: lengths differ");
+    let scale = want.iter().fold(0f32, |m, v| m.max(v.abs())).max(1e-12);
+    for (i, (g, w)) in got.iter().zip(want).enumerate() {
+        assert!((g - w).abs() <= rel * scale, "{what}[{i}]: fused {g} vs batch {w} (scale {scale})");
+    }
+}
+
+/// Runs `n` samples through three chunks in two slots, keeping every sample but each third,
+/// and compares with one batch of the kept samples.
+fn fused_matches_batch<M: Model>(name: &str, model: &M, params: &M::Params, rng: &mut Rng) {
+    let isa = Isa::detect();
+    let n = 150;
+    let pos: Vec<Vec3> =
+        (0..n).map(|_| Vec3::new(rng.uniform(-0.9, 0.9), rng.uniform(-0.9, 0.9), rng.uniform(-0.9, 0.9))).collect();
+    let dirs: Vec<Vec3> =
+        (0..n).map(|_| Vec3::new(rng.uniform(-1.0, 1.0), rng.uniform(-1.0, 1.0), 0.5).normalize()).collect();
+    let kept: Vec<usize> = (0..n).filter(|i| i % 3 != 1).collect();
+    let k = kept.len();
+    let d_sigma: Vec<f32> = (0..k).map(|_| rng.uniform(-1.0, 1.0)).collect();
+    let d_rgb: Vec<[f32; 3]> = (0..k).map(|_| std::array::from_fn(|_| rng.uniform(-1.0, 1.0))).collect();
+
+    // The batch path on the kept samples.
+    let (kp, kd): (Vec<Vec3>, Vec<Vec3>) = kept.iter().map(|&i| (pos[i], dirs[i])).unzip();
+    let (mut sigma_ref, mut rgb_ref) = (vec![0.0; k], vec![[0.0; 3]; k]);
+    let mut ctx = M::Context::default();
+    model.forward(isa, params, &kp, &kd, &mut sigma_ref, &mut rgb_ref, &mut ctx);
+    let mut g_ref = model.zero_grads();
+    model.backward(isa, params, &mut ctx, &d_sigma, &d_rgb, &mut g_ref);
+
+    // The chunk path: slot 0 takes two chunks, slot 1 one; one chunk state reused throughout.
+    let mut slots: Vec<M::Slot> = (0..2).map(|_| M::Slot::default()).collect();
+    slots.iter_mut().for_each(|s| model.begin_slot(s));
+    let mut chunk = M::Chunk::default();
+    let mut j = 0;
+    for (s, range) in [(0, 0..40), (0, 40..75), (1, 75..n)] {
+        let mut sigma = vec![0.0; range.len()];
+        model.chunk_density(isa, params, &pos[range.clone()], &mut sigma, &mut chunk);
+        let keep: Vec<u32> = range.clone().filter(|i| i % 3 != 1).map(|i| (i - range.start) as u32).collect();
+        let kept_sigma: Vec<f32> = keep.iter().map(|&r| sigma[r as usize]).collect();
+        let rows = j..j + keep.len();
+        close(&format!("{name}: σ"), &kept_sigma, &sigma_ref[rows.clone()], 1e-5);
+        let mut rgb = vec![[0.0; 3]; keep.len()];
+        model.chunk_colour(isa, params, &keep, &kd[rows.clone()], &mut rgb, &mut chunk);
+        close(&format!("{name}: colour"), rgb.as_flattened(), rgb_ref[rows.clone()].as_flattened(), 1e-5);
+        model.chunk_backward(isa, params, &mut chunk, &d_sigma[rows.clone()], &d_rgb[rows.clone()], &mut slots[s]);
+        j = rows.end;
+    }
+    assert_eq!(j, k);
+    let mut g = model.zero_grads();
+    model.finish_step(isa, &slots, &mut g);
+
+    let (mut p1, mut p2) = (params.clone(), params.clone());
+    let fused = model.groups(&mut p1, &g);
+    let batch = model.groups(&mut p2, &g_ref);
+    assert_eq!(fused.len(), batch.len());
+    // The grid and both networks of the trained NeRF always receive gradient.
+    assert!(batch.iter().take(3).all(|b| b.grad.iter().any(|&v| v != 0.0)), "{name}: nothing to compare");
+    for (i, (f, b)) in fused.iter().zip(&batch).enumerate() {
+        close(&format!("{name}: group {i} gradient"), f.grad, b.grad, 1e-4);
+    }
+}
+
+#[test]
+fn the_nerf_chunk_path_matches_the_batch_path() {
+    let mut rng = Rng::new(5);
+    let n = nerf(&mut rng);
+    fused_matches_batch("nerf", &n.field, &n.params, &mut rng);
+}
+
+#[test]
+fn the_residual_chunk_path_matches_the_batch_path() {
+    let own = MixnetEncoding::Own(HashGridConfig {
+        levels: 4,
+        log2_table_size: 8,
+        base_resolution: 4,
+        finest_resolution: 32,
+    });
+    for (kind, mixnet) in [
+        (MixKind::Mixnet(DensityMix::Raw), own),
+        (MixKind::Mixnet(DensityMix::Activated), MixnetEncoding::Shared),
+        (MixKind::Sum, own),
+    ] {
+        let mut rng = Rng::new(9);
+        let bg = nerf(&mut rng);
+        let cfg = ResidualConfig { residual: NerfConfig { grid: grid(), aabb: aabb() }, kind, mixnet };
+        let f = ResidualField::new(bg, cfg);
+        let mut p = f.init_params(&mut rng);
+        p.residual.grid.master.iter_mut().for_each(|v| *v = rng.uniform(-1.0, 1.0));
+        p.residual.grid.sync_mirror();
+        p.mixnet.grid.master.iter_mut().for_each(|v| *v = rng.uniform(-1.0, 1.0));
+        p.mixnet.grid.sync_mirror();
+        // The Mixnet's output layer starts at zero (β = ½); give it real weights.
+        let last = *f.mixnet().mlp().layers().last().unwrap();
+        let w = p.mixnet.mlp.weights_mut();
+        for k in 0..last.k_real {
+            w[last.offset + k * last.o] = rng.uniform(-0.3, 0.3);
+        }
+        p.mixnet.mlp.sync();
+        fused_matches_batch(&format!("residual {kind:?} {mixnet:?}"), &f, &p, &mut rng);
+    }
+}
