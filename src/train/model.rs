@@ -88,7 +88,6 @@ pub trait Model: Sync {
     fn chunk_density(&self, isa: Isa, p: &Self::Params, positions: &[Vec3], sigma: &mut [f32], c: &mut Self::Chunk);
     /// Keeps rows `keep` (strictly increasing) of the last [`Model::chunk_density`] and writes
     /// their activated colours, seen along `dirs` (one per kept row), into `rgb`.
-    #[allow(clippy::too_many_arguments)]
     fn chunk_colour(
         &self,
         isa: Isa,
@@ -99,7 +98,6 @@ pub trait Model: Sync {
         c: &mut Self::Chunk,
     );
     /// dL/dσ and dL/dc of the kept rows → accumulated into `slot`.
-    #[allow(clippy::too_many_arguments)]
     fn chunk_backward(
         &self,
         isa: Isa,

@@ -18,9 +18,9 @@
 //!
 //! Determinism: ray sampling draws from `Rng::stream(seed, step)`; a slot's rays, its chunks
 //! and the order it accumulates in depend only on the data; slots reduce in slot order —
-//! same seed, same bits on any thread count. All that carries over between steps is the [`TrainState`] (parameters,
-//! occupancy grid, Adam moments, step), so a run resumed from a saved state continues
-//! bit-exactly.
+//! same seed, same bits on any thread count. All that carries over between steps is the
+//! [`TrainState`] (parameters, occupancy grid, Adam moments, step), so a run resumed from a
+//! saved state continues bit-exactly.
 
 use crate::field::residual::{ResidualConfig, ResidualField, ResidualModel};
 pub use crate::field::Nerf;
