@@ -163,6 +163,38 @@ impl Mixnet {
         MixnetGrads { grid: crate::memory::zeroed_vec(grid), mlp: vec![0.0; self.mlp.n_params()] }
     }
 
+    /// The features the MLP reads for `positions`: encoded by the own grid into `unit` and `enc`
+    /// (on the rayon pool when `par`), or the caller's `shared` features.
+    fn features<'a>(
+        &self,
+        isa: Isa,
+        params: &MixnetParams,
+        positions: &[Vec3],
+        shared: Option<&'a [f32]>,
+        unit: &mut Vec<[f32; 3]>,
+        enc: &'a mut Vec<f32>,
+        par: bool,
+    ) -> &'a [f32] {
+        let n = positions.len();
+        unit.clear();
+        let enc = match (&self.grid, shared) {
+            (Some(grid), None) => {
+                unit.extend(positions.iter().map(|&p| self.aabb.to_unit(p).to_array()));
+                enc.resize(n * grid.output_width(), 0.0);
+                match par {
+                    true => grid.forward_par(isa, &params.grid.table, unit, enc),
+                    false => grid.forward(isa, &params.grid.table, unit, enc),
+                }
+                &enc[..]
+            }
+            (None, Some(f)) => f,
+            _ => panic!("mixnet: shared features are given exactly when the encoding is shared"),
+        };
+        let w = self.mlp.input_stride();
+        assert_eq!(enc.len(), n * w, "mixnet: features are not {w} per sample");
+        enc
+    }
+
     /// Logits `m` (β = sigmoid(m)) at world `positions`, saving what backward needs. With a
     /// shared encoding, `shared` holds the residual's features of those positions
     /// (`positions.len()` rows); with its own grid it must be `None`.
@@ -179,20 +211,8 @@ impl Mixnet {
         assert_eq!(logits.len(), n, "mixnet: output length differs from the sample count");
         ctx.n = n;
         ctx.slots.resize_with(SLOTS, Slot::default);
-        let enc = match (&self.grid, shared) {
-            (Some(grid), None) => {
-                ctx.unit.clear();
-                ctx.unit.extend(positions.iter().map(|&p| self.aabb.to_unit(p).to_array()));
-                ctx.enc.resize(n * grid.output_width(), 0.0);
-                grid.forward_par(isa, &params.grid.table, &ctx.unit, &mut ctx.enc);
-                &ctx.enc[..]
-            }
-            (None, Some(f)) => f,
-            _ => panic!("mixnet: shared features are given exactly when the encoding is shared"),
-        };
-        let w = self.mlp.input_stride();
-        assert_eq!(enc.len(), n * w, "mixnet: features are not {w} per sample");
-        let so = self.mlp.output_stride();
+        let enc = self.features(isa, params, positions, shared, &mut ctx.unit, &mut ctx.enc, true);
+        let (w, so) = (self.mlp.input_stride(), self.mlp.output_stride());
         let parts = split_rows(logits, n, 1);
         ctx.slots.par_iter_mut().zip(parts).enumerate().for_each(|(s, (slot, out))| {
             let r = slot_range(n, s);
@@ -216,19 +236,8 @@ impl Mixnet {
     ) {
         let n = positions.len();
         assert_eq!(logits.len(), n, "mixnet: output length differs from the sample count");
-        c.unit.clear();
-        let enc = match (&self.grid, shared) {
-            (Some(grid), None) => {
-                c.unit.extend(positions.iter().map(|&p| self.aabb.to_unit(p).to_array()));
-                c.enc.resize(n * grid.output_width(), 0.0);
-                grid.forward(isa, &params.grid.table, &c.unit, &mut c.enc);
-                &c.enc[..]
-            }
-            (None, Some(f)) => f,
-            _ => panic!("mixnet: shared features are given exactly when the encoding is shared"),
-        };
-        let (w, so) = (self.mlp.input_stride(), self.mlp.output_stride());
-        assert_eq!(enc.len(), n * w, "mixnet: features are not {w} per sample");
+        let enc = self.features(isa, params, positions, shared, &mut c.unit, &mut c.enc, false);
+        let so = self.mlp.output_stride();
         self.mlp.forward(isa, &params.mlp, enc, n, &mut c.ctx);
         for (o, row) in logits.iter_mut().zip(c.ctx.output().chunks(so)) {
             *o = row[0];
