@@ -347,7 +347,7 @@ pub fn run(opts: &BenchOptions) -> BenchReport {
     );
     // The backward as the training step runs it: feature gradients in the level-major layout.
     let mut levels = FeatureLevels::default();
-    levels.append(&pos, &d_enc, grid.output_width(), grid.levels().len());
+    levels.append(&grid, &pos, &d_enc);
     let bwd = |grads: &mut Vec<f32>| grid.backward_params_levels(isa, &[&levels], grads, GradientMode::Accumulate);
     push("hash_grid_bwd_ns_per_sample_1t", "ns/sample", ns(time_reps(reps, || pool1.install(|| bwd(&mut grads)))));
     push(
@@ -373,7 +373,7 @@ pub fn run(opts: &BenchOptions) -> BenchReport {
     let md_enc: Vec<f32> = (0..menc.len()).map(|_| rng.uniform(-1.0, 1.0)).collect();
     let mut mgrads: Vec<f32> = crate::memory::zeroed_vec(mgrid.n_params());
     let mut mlevels = FeatureLevels::default();
-    mlevels.append(&pos, &md_enc, mgrid.output_width(), mgrid.levels().len());
+    mlevels.append(&mgrid, &pos, &md_enc);
     push(
         "mixnet_grid_fwd_ns_per_sample",
         "ns/sample",

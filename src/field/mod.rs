@@ -77,18 +77,24 @@ pub struct NerfField {
     colour: Mlp<64>,
 }
 
-/// Per-slot MLP state.
+/// The two networks' state for one run of rows — a slot of a batch pass or a chunk of the
+/// fused training step: saved activations, the colour network's input and backward scratch.
 #[derive(Clone, Debug, Default)]
-struct Slot {
+struct Nets {
     density: MlpContext,
-    colour: MlpContext,
     colour_in: Vec<f32>,
+    colour: MlpContext,
     ws: MlpWorkspace,
     /// Scratch: dL/d(output) of the colour, then of the density network.
     d_out: Vec<f32>,
     d_colour_in: Vec<f32>,
-    g_density: Vec<f32>,
-    g_colour: Vec<f32>,
+}
+
+/// Per-slot state of a batch pass: the networks' and their gradients.
+#[derive(Clone, Debug, Default)]
+struct Slot {
+    nets: Nets,
+    g: NetGrads,
 }
 
 /// What a forward pass saves (reused across batches; grows only with the batch).
@@ -126,12 +132,7 @@ impl FieldContext {
 pub struct FieldChunk {
     unit: Vec<[f32; 3]>,
     enc: Vec<f32>,
-    density: MlpContext,
-    colour_in: Vec<f32>,
-    colour: MlpContext,
-    ws: MlpWorkspace,
-    d_out: Vec<f32>,
-    d_colour_in: Vec<f32>,
+    nets: Nets,
     d_enc: Vec<f32>,
 }
 
@@ -279,16 +280,12 @@ impl NerfField {
     pub fn density(&self, isa: Isa, params: &NerfParams, positions: &[Vec3], raw: &mut [f32], ctx: &mut FieldContext) {
         assert_eq!(raw.len(), positions.len(), "field: output length differs from the sample count");
         self.encode(isa, params, positions, ctx);
-        let n = positions.len();
-        let (w, so) = (self.grid.output_width(), self.density.output_stride());
+        let (n, w) = (positions.len(), self.grid.output_width());
         let enc = &ctx.enc;
         let raw_parts = split_rows(raw, n, 1);
         ctx.slots.par_iter_mut().zip(raw_parts).enumerate().for_each(|(s, (slot, out))| {
             let r = slot_range(n, s);
-            self.density.forward(isa, &params.density, &enc[r.start * w..r.end * w], r.len(), &mut slot.density);
-            for (o, row) in out.iter_mut().zip(slot.density.output().chunks(so)) {
-                *o = row[0];
-            }
+            self.nets_density(isa, params, &enc[r.start * w..r.end * w], out, &mut slot.nets);
         });
     }
 
@@ -307,25 +304,13 @@ impl NerfField {
         let n = positions.len();
         assert!(dirs.len() == n && raw.len() == n && rgb_raw.len() == n, "field: buffers differ from the sample count");
         self.encode(isa, params, positions, ctx);
-        let (w, so, ci) = (self.grid.output_width(), self.density.output_stride(), self.colour.input_stride());
-        let co = self.colour.output_stride();
+        let w = self.grid.output_width();
         let enc = &ctx.enc;
         let parts = split_rows(raw, n, 1).into_par_iter().zip(split_rows(rgb_raw, n, 1));
         ctx.slots.par_iter_mut().zip(parts).enumerate().for_each(|(s, (slot, (raw, rgb)))| {
             let r = slot_range(n, s);
-            let rows = r.len();
-            self.density.forward(isa, &params.density, &enc[r.start * w..r.end * w], rows, &mut slot.density);
-            slot.colour_in.clear();
-            slot.colour_in.resize(rows * ci, 0.0);
-            for (b, (row, dens)) in slot.colour_in.chunks_mut(ci).zip(slot.density.output().chunks(so)).enumerate() {
-                row[..SH4_COEFFS].copy_from_slice(&sh4(dirs[r.start + b].to_array()));
-                row[SH4_COEFFS..SH4_COEFFS + GEO_FEATURES].copy_from_slice(&dens[1..1 + GEO_FEATURES]);
-                raw[b] = dens[0];
-            }
-            self.colour.forward(isa, &params.colour, &slot.colour_in, rows, &mut slot.colour);
-            for (o, row) in rgb.iter_mut().zip(slot.colour.output().chunks(co)) {
-                *o = [row[0], row[1], row[2]];
-            }
+            self.nets_density(isa, params, &enc[r.start * w..r.end * w], raw, &mut slot.nets);
+            self.nets_colour(isa, params, &dirs[r], rgb, &mut slot.nets);
         });
     }
 
@@ -354,17 +339,12 @@ impl NerfField {
         raw: &mut [f32],
         c: &mut FieldChunk,
     ) {
-        let n = positions.len();
-        assert_eq!(raw.len(), n, "field: output length differs from the sample count");
+        assert_eq!(raw.len(), positions.len(), "field: output length differs from the sample count");
         c.unit.clear();
         c.unit.extend(positions.iter().map(|&p| self.config.aabb.to_unit(p).to_array()));
-        let (w, so) = (self.grid.output_width(), self.density.output_stride());
-        c.enc.resize(n * w, 0.0);
+        c.enc.resize(positions.len() * self.grid.output_width(), 0.0);
         self.grid.forward(isa, &params.grid.table, &c.unit, &mut c.enc);
-        self.density.forward(isa, &params.density, &c.enc, n, &mut c.density);
-        for (o, row) in raw.iter_mut().zip(c.density.output().chunks(so)) {
-            *o = row[0];
-        }
+        self.nets_density(isa, params, &c.enc, raw, &mut c.nets);
     }
 
     /// Keeps rows `keep` (strictly increasing) of the last [`NerfField::chunk_density`]: the
@@ -374,7 +354,7 @@ impl NerfField {
         c.unit.truncate(keep.len());
         crate::mlp::keep_rows(&mut c.enc, self.grid.output_width(), keep);
         c.enc.truncate(keep.len() * self.grid.output_width());
-        c.density.keep_rows(keep);
+        c.nets.density.keep_rows(keep);
     }
 
     /// Chunk forward, second half: the colour network on the chunk's rows seen along `dirs`;
@@ -387,19 +367,8 @@ impl NerfField {
         rgb_raw: &mut [[f32; 3]],
         c: &mut FieldChunk,
     ) {
-        let n = c.len();
-        assert!(dirs.len() == n && rgb_raw.len() == n, "field: buffers differ from the chunk's rows");
-        let (so, ci, co) = (self.density.output_stride(), self.colour.input_stride(), self.colour.output_stride());
-        c.colour_in.clear();
-        c.colour_in.resize(n * ci, 0.0);
-        for ((row, dens), dir) in c.colour_in.chunks_mut(ci).zip(c.density.output().chunks(so)).zip(dirs) {
-            row[..SH4_COEFFS].copy_from_slice(&sh4(dir.to_array()));
-            row[SH4_COEFFS..SH4_COEFFS + GEO_FEATURES].copy_from_slice(&dens[1..1 + GEO_FEATURES]);
-        }
-        self.colour.forward(isa, &params.colour, &c.colour_in, n, &mut c.colour);
-        for (o, row) in rgb_raw.iter_mut().zip(c.colour.output().chunks(co)) {
-            *o = [row[0], row[1], row[2]];
-        }
+        assert_eq!(dirs.len(), c.len(), "field: directions differ from the chunk's rows");
+        self.nets_colour(isa, params, dirs, rgb_raw, &mut c.nets);
     }
 
     /// Chunk backward: dL/ds (`d_raw`) and dL/dc′ (`d_rgb_raw`) of the chunk's rows →
@@ -414,49 +383,90 @@ impl NerfField {
         d_rgb_raw: &[[f32; 3]],
         g: &mut NetGrads,
     ) {
-        let n = c.len();
-        let (w, so, ci, co) = (
-            self.grid.output_width(),
-            self.density.output_stride(),
-            self.colour.input_stride(),
-            self.colour.output_stride(),
-        );
-        assert!(d_raw.len() == n && d_rgb_raw.len() == n, "field: gradient buffers differ from the chunk's rows");
-        c.d_enc.resize(n * w, 0.0);
-        c.d_out.clear();
-        c.d_out.resize(n * co, 0.0);
-        for (row, d) in c.d_out.chunks_mut(co).zip(d_rgb_raw) {
+        c.d_enc.resize(c.len() * self.grid.output_width(), 0.0);
+        self.nets_backward(isa, params, &c.enc, d_raw, d_rgb_raw, &mut c.nets, g, &mut c.d_enc);
+    }
+
+    /// The density network on rows of encoded features `enc`; raw densities into `raw`.
+    fn nets_density(&self, isa: Isa, params: &NerfParams, enc: &[f32], raw: &mut [f32], nets: &mut Nets) {
+        let n = raw.len();
+        self.density.forward(isa, &params.density, enc, n, &mut nets.density);
+        for (o, row) in raw.iter_mut().zip(nets.density.output().chunks(self.density.output_stride())) {
+            *o = row[0];
+        }
+    }
+
+    /// The colour network on the rows of the last [`NerfField::nets_density`], seen along
+    /// `dirs`: SH(direction) ⊕ geometry features → pre-sigmoid colours into `rgb_raw`.
+    fn nets_colour(&self, isa: Isa, params: &NerfParams, dirs: &[Vec3], rgb_raw: &mut [[f32; 3]], nets: &mut Nets) {
+        let n = nets.density.n();
+        assert!(dirs.len() == n && rgb_raw.len() == n, "field: buffers differ from the sample count");
+        let (so, ci, co) = (self.density.output_stride(), self.colour.input_stride(), self.colour.output_stride());
+        nets.colour_in.clear();
+        nets.colour_in.resize(n * ci, 0.0);
+        for ((row, dens), dir) in nets.colour_in.chunks_mut(ci).zip(nets.density.output().chunks(so)).zip(dirs) {
+            row[..SH4_COEFFS].copy_from_slice(&sh4(dir.to_array()));
+            row[SH4_COEFFS..SH4_COEFFS + GEO_FEATURES].copy_from_slice(&dens[1..1 + GEO_FEATURES]);
+        }
+        self.colour.forward(isa, &params.colour, &nets.colour_in, n, &mut nets.colour);
+        for (o, row) in rgb_raw.iter_mut().zip(nets.colour.output().chunks(co)) {
+            *o = [row[0], row[1], row[2]];
+        }
+    }
+
+    /// Both networks backwards over the rows of the last forward (`enc` their features):
+    /// weight gradients added into `g`, dL/d(features) written into `d_enc`.
+    #[allow(clippy::too_many_arguments)]
+    fn nets_backward(
+        &self,
+        isa: Isa,
+        params: &NerfParams,
+        enc: &[f32],
+        d_raw: &[f32],
+        d_rgb_raw: &[[f32; 3]],
+        nets: &mut Nets,
+        g: &mut NetGrads,
+        d_enc: &mut [f32],
+    ) {
+        let n = nets.density.n();
+        assert!(d_raw.len() == n && d_rgb_raw.len() == n, "field: gradient buffers differ from the sample count");
+        let (so, ci, co) = (self.density.output_stride(), self.colour.input_stride(), self.colour.output_stride());
+        // Colour network: dL/dc′ → weights, and dL/d(colour input) for the geometry features.
+        nets.d_out.clear();
+        nets.d_out.resize(n * co, 0.0);
+        for (row, d) in nets.d_out.chunks_mut(co).zip(d_rgb_raw) {
             row[..3].copy_from_slice(d);
         }
-        c.d_colour_in.resize(n * ci, 0.0);
+        nets.d_colour_in.resize(n * ci, 0.0);
         self.colour.backward(
             isa,
             &params.colour,
-            &c.colour_in,
-            &c.colour,
-            &c.d_out,
+            &nets.colour_in,
+            &nets.colour,
+            &nets.d_out,
             &mut g.colour,
             GradientMode::Accumulate,
-            Some(&mut c.d_colour_in),
-            &mut c.ws,
+            Some(&mut nets.d_colour_in),
+            &mut nets.ws,
         );
-        c.d_out.clear();
-        c.d_out.resize(n * so, 0.0);
-        for (b, row) in c.d_out.chunks_mut(so).enumerate() {
+        // Density network: d_out = (dL/ds, dL/d geometry features).
+        nets.d_out.clear();
+        nets.d_out.resize(n * so, 0.0);
+        for (b, row) in nets.d_out.chunks_mut(so).enumerate() {
             row[0] = d_raw[b];
             row[1..1 + GEO_FEATURES]
-                .copy_from_slice(&c.d_colour_in[b * ci + SH4_COEFFS..b * ci + SH4_COEFFS + GEO_FEATURES]);
+                .copy_from_slice(&nets.d_colour_in[b * ci + SH4_COEFFS..b * ci + SH4_COEFFS + GEO_FEATURES]);
         }
         self.density.backward(
             isa,
             &params.density,
-            &c.enc,
-            &c.density,
-            &c.d_out,
+            enc,
+            &nets.density,
+            &nets.d_out,
             &mut g.density,
             GradientMode::Accumulate,
-            Some(&mut c.d_enc),
-            &mut c.ws,
+            Some(d_enc),
+            &mut nets.ws,
         );
     }
 
@@ -485,67 +495,22 @@ impl NerfField {
         if mode == GradientMode::Ignore {
             return;
         }
-        let (w, so, ci, co) = (
-            self.grid.output_width(),
-            self.density.output_stride(),
-            self.colour.input_stride(),
-            self.colour.output_stride(),
-        );
+        let w = self.grid.output_width();
         ctx.d_enc.resize(n * w, 0.0);
         let enc = &ctx.enc;
         let d_enc_parts = split_rows(&mut ctx.d_enc, n, w);
         ctx.slots.par_iter_mut().zip(d_enc_parts).enumerate().for_each(|(s, (slot, d_enc))| {
             let r = slot_range(n, s);
-            let rows = r.len();
-            // Colour network: dL/dc′ → weights, and dL/d(colour input) for the geometry features.
-            let d_out = &mut slot.d_out;
-            d_out.clear();
-            d_out.resize(rows * co, 0.0);
-            for (b, row) in d_out.chunks_mut(co).enumerate() {
-                row[..3].copy_from_slice(&d_rgb_raw[r.start + b]);
-            }
-            slot.g_colour.clear();
-            slot.g_colour.resize(self.colour.n_params(), 0.0);
-            slot.d_colour_in.resize(rows * ci, 0.0);
-            self.colour.backward(
-                isa,
-                &params.colour,
-                &slot.colour_in,
-                &slot.colour,
-                d_out,
-                &mut slot.g_colour,
-                GradientMode::Overwrite,
-                Some(&mut slot.d_colour_in),
-                &mut slot.ws,
-            );
-            // Density network: d_out = (dL/ds, dL/d geometry features).
-            d_out.clear();
-            d_out.resize(rows * so, 0.0);
-            for (b, row) in d_out.chunks_mut(so).enumerate() {
-                row[0] = d_raw[r.start + b];
-                row[1..1 + GEO_FEATURES]
-                    .copy_from_slice(&slot.d_colour_in[b * ci + SH4_COEFFS..b * ci + SH4_COEFFS + GEO_FEATURES]);
-            }
-            slot.g_density.clear();
-            slot.g_density.resize(self.density.n_params(), 0.0);
-            self.density.backward(
-                isa,
-                &params.density,
-                &enc[r.start * w..r.end * w],
-                &slot.density,
-                d_out,
-                &mut slot.g_density,
-                GradientMode::Overwrite,
-                Some(d_enc),
-                &mut slot.ws,
-            );
+            slot.g.clear(self);
+            let (enc, d_raw, d_rgb_raw) = (&enc[r.start * w..r.end * w], &d_raw[r.clone()], &d_rgb_raw[r]);
+            self.nets_backward(isa, params, enc, d_raw, d_rgb_raw, &mut slot.nets, &mut slot.g, d_enc);
         });
         if mode == GradientMode::Overwrite {
             grads.colour.fill(0.0);
             grads.density.fill(0.0);
         }
-        accumulate_in_order(ctx.slots.iter().map(|s| s.g_colour.as_slice()), &mut grads.colour);
-        accumulate_in_order(ctx.slots.iter().map(|s| s.g_density.as_slice()), &mut grads.density);
+        accumulate_in_order(ctx.slots.iter().map(|s| s.g.colour.as_slice()), &mut grads.colour);
+        accumulate_in_order(ctx.slots.iter().map(|s| s.g.density.as_slice()), &mut grads.density);
         if !feature_grad.is_empty() {
             assert_eq!(feature_grad.len(), ctx.d_enc.len(), "field: feature gradient is not n × encoding width");
             ctx.d_enc.iter_mut().zip(feature_grad).for_each(|(d, g)| *d += g);

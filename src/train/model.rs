@@ -166,6 +166,26 @@ pub struct ResidualSlot {
     mixnet_grid: FeatureLevels,
 }
 
+/// The NeRF's activations backwards: dL/ds = dL/dσ · trunc_exp′ and dL/dc′ = dL/dc · sigmoid′,
+/// both derivatives from the activated outputs `sigma` and `rgb`.
+fn raw_grads(
+    sigma: &[f32],
+    rgb: &[[f32; 3]],
+    d_sigma: &[f32],
+    d_rgb: &[[f32; 3]],
+    d_raw: &mut Vec<f32>,
+    d_rgb_raw: &mut Vec<[f32; 3]>,
+) {
+    d_raw.clear();
+    d_raw.extend(sigma.iter().zip(d_sigma).map(|(&s, &d)| d * Activation::TruncExp.derivative_from_output(s)));
+    d_rgb_raw.clear();
+    d_rgb_raw.extend(
+        rgb.iter()
+            .zip(d_rgb)
+            .map(|(c, d)| std::array::from_fn(|k| d[k] * Activation::Sigmoid.derivative_from_output(c[k]))),
+    );
+}
+
 /// `out = Σ parts` in part order.
 fn reduce<'a>(parts: impl IntoIterator<Item = &'a [f32]>, out: &mut [f32]) {
     out.fill(0.0);
@@ -229,14 +249,7 @@ impl Model for NerfField {
         grads: &mut NerfGrads,
     ) {
         let n = ctx.sigma.len();
-        ctx.d_raw.resize(n, 0.0);
-        ctx.d_rgb_raw.resize(n, [0.0; 3]);
-        // dL/ds = dL/dσ · trunc_exp′, dL/dc′ = dL/dc · sigmoid′ (both from the outputs).
-        for i in 0..n {
-            ctx.d_raw[i] = d_sigma[i] * Activation::TruncExp.derivative_from_output(ctx.sigma[i]);
-            ctx.d_rgb_raw[i] =
-                std::array::from_fn(|k| d_rgb[i][k] * Activation::Sigmoid.derivative_from_output(ctx.rgb[i][k]));
-        }
+        raw_grads(&ctx.sigma, &ctx.rgb, d_sigma, d_rgb, &mut ctx.d_raw, &mut ctx.d_rgb_raw);
         if n == 0 {
             grads.grid.fill(0.0);
             grads.density.fill(0.0);
@@ -295,17 +308,9 @@ impl Model for NerfField {
         d_rgb: &[[f32; 3]],
         slot: &mut NerfSlot,
     ) {
-        let n = c.sigma.len();
-        c.d_raw.resize(n, 0.0);
-        c.d_rgb_raw.resize(n, [0.0; 3]);
-        for i in 0..n {
-            c.d_raw[i] = d_sigma[i] * Activation::TruncExp.derivative_from_output(c.sigma[i]);
-            c.d_rgb_raw[i] =
-                std::array::from_fn(|k| d_rgb[i][k] * Activation::Sigmoid.derivative_from_output(c.rgb[i][k]));
-        }
+        raw_grads(&c.sigma, &c.rgb, d_sigma, d_rgb, &mut c.d_raw, &mut c.d_rgb_raw);
         NerfField::chunk_backward(self, isa, p, &mut c.field, &c.d_raw, &c.d_rgb_raw, &mut slot.nets);
-        let grid = self.grid();
-        slot.grid.append(c.field.unit(), c.field.feature_grad(), grid.output_width(), grid.levels().len());
+        slot.grid.append(self.grid(), c.field.unit(), c.field.feature_grad());
     }
 
     fn finish_step(&self, isa: Isa, slots: &[NerfSlot], grads: &mut NerfGrads) {
@@ -415,12 +420,10 @@ impl Model for ResidualField {
         slot: &mut ResidualSlot,
     ) {
         ResidualField::chunk_backward(self, isa, p, c, d_sigma, d_rgb, &mut slot.nets);
-        let grid = self.residual().grid();
-        let (res, levels) = (c.residual(), grid.levels().len());
-        slot.residual_grid.append(res.unit(), res.feature_grad(), grid.output_width(), levels);
+        let res = c.residual();
+        slot.residual_grid.append(self.residual().grid(), res.unit(), res.feature_grad());
         if let (MixKind::Mixnet(_), Some(grid)) = (self.kind(), self.mixnet().grid()) {
-            let mix = c.mixnet();
-            slot.mixnet_grid.append(mix.unit(), mix.feature_grad(), grid.output_width(), grid.levels().len());
+            slot.mixnet_grid.append(grid, c.mixnet().unit(), c.mixnet().feature_grad());
         }
     }
 

@@ -311,7 +311,6 @@ impl HashGrid {
     }
 }
 
-/// A chunk of positions as structure-of-arrays, padded with zeros to a multiple of 8 lanes.
 /// dL/d(encoding) of a batch in the level-major layout the fused training step gathers: the
 /// samples' unit positions and, per level, their 2 feature gradients in sample order.
 #[derive(Clone, Debug, Default)]
@@ -329,18 +328,20 @@ impl FeatureLevels {
         self.levels.iter_mut().for_each(Vec::clear);
     }
 
-    /// Appends samples at `unit` with their row-major gradients `d_rows` (`unit.len()` rows of
-    /// `width`, the grid's output width; `levels` levels of 2 features first).
-    pub fn append(&mut self, unit: &[[f32; 3]], d_rows: &[f32], width: usize, levels: usize) {
+    /// Appends samples at `unit` with their row-major gradients `d_rows` of `grid`'s encoding
+    /// (`unit.len()` rows of its output width).
+    pub fn append(&mut self, grid: &HashGrid, unit: &[[f32; 3]], d_rows: &[f32]) {
+        let width = grid.output_width();
         assert_eq!(d_rows.len(), unit.len() * width, "hash grid: feature gradient is not rows × width");
         self.unit.extend_from_slice(unit);
-        self.levels.resize_with(levels, Vec::new);
+        self.levels.resize_with(grid.levels().len(), Vec::new);
         for (l, d) in self.levels.iter_mut().enumerate() {
             d.extend(d_rows.chunks_exact(width).flat_map(|row| [row[2 * l], row[2 * l + 1]]));
         }
     }
 }
 
+/// A chunk of positions as structure-of-arrays, padded with zeros to a multiple of 8 lanes.
 pub(crate) struct Soa {
     pub x: [f32; CHUNK],
     pub y: [f32; CHUNK],
