@@ -34,7 +34,9 @@ proptest! {
         if disc > 1e-3 {
             let want = b - disc.sqrt();
             let hit = got.expect("a ray through the sphere must hit it");
-            prop_assert!((hit - want).abs() <= 6.0 / n as f32, "{} vs {}", hit, want);
+            // One step, plus f32 rounding: a sample a hair inside the surface can test as outside
+            // (found at dx = 0.029367818, dy = -0.150156, r = 0.57732743: 3.0012e-3 past it).
+            prop_assert!((hit - want).abs() <= 6.0 / n as f32 + 1e-5, "{} vs {}", hit, want);
             let c = composite_ray(&raw.iter().map(|s| s.exp()).collect::<Vec<_>>(), &delta, &t, &vec![[0.5; 3]; n], [0.0; 3]);
             prop_assert!((expected_depth(&c) - want).abs() <= 6.0 / n as f32 + 1e-3, "{} vs {}", expected_depth(&c), want);
         } else if disc < -1e-3 {
