@@ -32,6 +32,9 @@ const TILE_PIXELS: usize = 1024;
 /// Samples per ray per round of the depth-only path (rays stop at their first solid sample, so
 /// short segments waste little; a tile keeps the batch large).
 const DEPTH_SEGMENT: usize = 4;
+/// Samples per density evaluation of the depth-only path: one thread encodes and runs the
+/// density network on this many at a time, so encodings and activations stay in L1/L2.
+const DEPTH_CHUNK: usize = 256;
 /// First segment length of the full path; doubles per round up to [`MAX_SEGMENT`].
 const FIRST_SEGMENT: usize = 16;
 const MAX_SEGMENT: usize = 128;
@@ -94,6 +97,7 @@ struct Worker<M: Model> {
     beta: Vec<f32>,
     beta_acc: Vec<f32>,
     ctx: M::Context,
+    chunk: M::Chunk,
 }
 
 impl<M: Model> Default for Worker<M> {
@@ -111,6 +115,7 @@ impl<M: Model> Default for Worker<M> {
             beta: Vec::new(),
             beta_acc: Vec::new(),
             ctx: M::Context::default(),
+            chunk: M::Chunk::default(),
         }
     }
 }
@@ -295,8 +300,11 @@ impl<M: Model> Worker<M> {
                     &mut self.ctx,
                 );
                 scene.model.betas(&self.ctx, &mut self.beta);
-            } else if n > 0 {
-                scene.model.density(isa, scene.params, &self.positions, &mut self.sigma, &mut self.ctx);
+            } else {
+                // On this thread, a chunk at a time (the fused training step's density pass).
+                for (p, s) in self.positions.chunks(DEPTH_CHUNK).zip(self.sigma.chunks_mut(DEPTH_CHUNK)) {
+                    scene.model.chunk_density(isa, scene.params, p, s, &mut self.chunk);
+                }
             }
             let states = &mut self.states;
             let beta_acc = &mut self.beta_acc;
