@@ -17,6 +17,6 @@ fn main() {
     }
     for isa in Isa::all() {
         opts.isa = isa;
-        println!("{}", run(&opts).to_table());
+        println!("{}", run(&opts, Vec::new()).to_table());
     }
 }

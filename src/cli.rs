@@ -38,8 +38,10 @@ commands:
          curves.csv, <scene>/curves.png and <scene>/depth_<i>.png side by side
   demo   [--out DIR] [--steps N] [--seed S] [--threads N]
          synthesise a workspace and a glass object, then compare as above (default out: rnerf-demo)
-  bench  [--json] [--reps N] [--log2t N] [--threads N]
-         throughput of the hot kernels on this machine (one JSON object with --json)
+  bench  [--json] [--reps N] [--log2t N] [--threads N] [--model MODEL [--model MODEL] --data DIR]
+         throughput of the hot kernels on this machine (one JSON object with --json); with
+         --model, render_depth_ms_200[_residual] time these trained models (a NeRF, a residual
+         model) from the first test view of DIR instead of the bench's short-trained ones
   help   this text
 
 threshold depth: --m M is a density sigma >= M per unit of the dataset's coordinates (per metre;
@@ -132,6 +134,11 @@ pub enum Command {
         log2t: Option<u32>,
         /// Worker threads (`--threads`).
         threads: Option<usize>,
+        /// Trained models whose depth rendering is timed instead of the bench's own (`--model`,
+        /// repeatable: one NeRF, one residual model).
+        models: Vec<PathBuf>,
+        /// Their camera: the first test view of this dataset (`--data`, needed with `--model`).
+        data: Option<PathBuf>,
     },
     /// `rnerf help`, `-h`, `--help` or no arguments.
     Help,
@@ -289,7 +296,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             "threads",
         ],
         "demo" => &["out", "steps", "seed", "threads"],
-        "bench" => &["json", "reps", "log2t", "threads"],
+        "bench" => &["json", "reps", "log2t", "threads", "model", "data"],
         other => return Err(err(format!("unknown command '{other}' (try 'rnerf help')"))),
     };
     while let Some(arg) = p.next().map_err(|e| err(e.to_string()))? {
@@ -389,7 +396,21 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             threads,
         }),
         "demo" => Command::Demo { out: f.out.clone(), steps: f.steps, seed: f.seed, threads },
-        _ => Command::Bench { json: f.json, reps: f.reps, log2t: f.log2t, threads },
+        _ => {
+            if f.models.is_empty() != f.data.is_none() {
+                return Err(err(
+                    "bench: --model and --data go together (the model's camera is the data's first test view)",
+                ));
+            }
+            Command::Bench {
+                json: f.json,
+                reps: f.reps,
+                log2t: f.log2t,
+                threads,
+                models: f.models.clone(),
+                data: f.data.clone(),
+            }
+        }
     })
 }
 
@@ -399,6 +420,8 @@ struct Flags {
     data: Option<PathBuf>,
     out: Option<PathBuf>,
     model: Option<PathBuf>,
+    /// Every `--model` given (bench takes several).
+    models: Vec<PathBuf>,
     csv: Option<PathBuf>,
     split: Option<String>,
     steps: Option<u32>,
@@ -442,7 +465,11 @@ impl Flags {
             "fixed-background" => self.fixed_background = true,
             "data" => self.data = Some(path(p, name)?),
             "out" => self.out = Some(path(p, name)?),
-            "model" => self.model = Some(path(p, name)?),
+            "model" => {
+                let m = path(p, name)?;
+                self.models.push(m.clone());
+                self.model = Some(m);
+            }
             "csv" => self.csv = Some(path(p, name)?),
             "background" => self.background = Some(path(p, name)?),
             "background-model" => self.background_model = Some(path(p, name)?),
@@ -680,7 +707,14 @@ mod tests {
         assert_eq!(parse(args("--help")), Ok(Command::Help));
         assert_eq!(
             parse(args("bench --json --reps 3 --log2t 15")),
-            Ok(Command::Bench { json: true, reps: Some(3), log2t: Some(15), threads: None })
+            Ok(Command::Bench {
+                json: true,
+                reps: Some(3),
+                log2t: Some(15),
+                threads: None,
+                models: vec![],
+                data: None
+            })
         );
         assert_eq!(
             parse(args("demo --steps=20 --threads 1")),
@@ -697,6 +731,8 @@ mod tests {
         for (bad, needle) in [
             ("bench --log2t 40", "--log2t: 40 is outside"),
             ("bench --reps 0", "--reps: must be at least 1"),
+            ("bench --model m.safetensors", "bench: --model and --data go together"),
+            ("bench --data d", "bench: --model and --data go together"),
             ("bench --reps many", "--reps: 'many' is not a valid value"),
             ("demo --threads", "--threads"),
             ("demo --frobnicate", "unexpected argument '--frobnicate'"),

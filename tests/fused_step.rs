@@ -2,6 +2,8 @@
 //! → finish) against the batch path (forward → backward) on the same kept samples: the same
 //! densities and colours, and the same gradients in every parameter group (up to the order of
 //! floating-point sums), for the NeRF and for the residual model with each Mixnet encoding.
+//! The density-only paths (batch `density`, per-chunk `chunk_density_only`: first network
+//! outputs only) give the chunk path's σ bit for bit.
 
 use glam::Vec3;
 use residual_nerf::encoding::HashGridConfig;
@@ -69,7 +71,14 @@ fn fused_matches_batch<M: Model>(name: &str, model: &M, params: &M::Params, rng:
     let mut j = 0;
     for (s, range) in [(0, 0..40), (0, 40..75), (1, 75..n)] {
         let mut sigma = vec![0.0; range.len()];
+        let mut only = vec![0.0; range.len()];
+        model.chunk_density_only(isa, params, &pos[range.clone()], &mut only, &mut chunk);
         model.chunk_density(isa, params, &pos[range.clone()], &mut sigma, &mut chunk);
+        let mut batch = vec![0.0; range.len()];
+        model.density(isa, params, &pos[range.clone()], &mut batch, &mut M::Context::default());
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&only), bits(&sigma), "{name}: chunk_density_only is not chunk_density's σ");
+        assert_eq!(bits(&batch), bits(&sigma), "{name}: density is not chunk_density's σ");
         let keep: Vec<u32> = range.clone().filter(|i| i % 3 != 1).map(|i| (i - range.start) as u32).collect();
         let kept_sigma: Vec<f32> = keep.iter().map(|&r| sigma[r as usize]).collect();
         let rows = j..j + keep.len();

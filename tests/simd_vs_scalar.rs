@@ -9,7 +9,9 @@ mod common;
 use common::{assert_close, cases};
 use proptest::prelude::*;
 use residual_nerf::encoding::{HashGrid, HashGridConfig, HashGridParams};
-use residual_nerf::mlp::{matmul_tn_acc_with, matmul_with, Activation, Mlp, MlpConfig, MlpContext, MlpWorkspace};
+use residual_nerf::mlp::{
+    matmul_first_with, matmul_tn_acc_with, matmul_with, Activation, Mlp, MlpConfig, MlpContext, MlpWorkspace,
+};
 use residual_nerf::rng::Rng;
 use residual_nerf::simd::{CpuLevel, Isa};
 use residual_nerf::train::adam::{step_kernel, AdamStep};
@@ -103,6 +105,15 @@ proptest! {
                 matmul_tn_acc_with(isa, &x, rows, k, &dz, o, &mut got_dw);
                 assert_close(&got_dw, &want_dw, 1e-5 * (1.0 + rows as f32), 1e-6, &format!("{isa} matmul_tn_acc rows={rows} k={k} o={o}"));
             }
+            // The first-column kernel is column 0 of each level's own matmul, bit for bit.
+            for isa in std::iter::once(Isa::scalar()).chain(simd_levels()) {
+                let mut full = vec![f32::NAN; rows * o];
+                matmul_with(isa, &x, rows, k, &w, o, &mut full, relu);
+                let mut first = vec![f32::NAN; rows];
+                matmul_first_with(isa, &x, rows, k, &w, o, &mut first, relu);
+                let col0: Vec<f32> = full.chunks(o).map(|r| r[0]).collect();
+                prop_assert!(first.iter().zip(&col0).all(|(a, b)| a.to_bits() == b.to_bits()), "{} matmul_first rows={} k={} o={} is not matmul's column 0", isa, rows, k, o);
+            }
         }
     }
 
@@ -182,6 +193,14 @@ fn check_mlp<const W: usize>(mlp: Mlp<W>, seed: u64) {
             (g, dx)
         };
         let want_ctx = forward(Isa::scalar());
+        // forward_first is each level's forward column 0, bit for bit.
+        for isa in std::iter::once(Isa::scalar()).chain(simd_levels()) {
+            let ctx = forward(isa);
+            let mut first = vec![f32::NAN; n];
+            mlp.forward_first(isa, &params, &x, n, &mut MlpContext::default(), &mut first);
+            let col0 = ctx.output().chunks(mlp.output_stride()).map(|r| r[0]);
+            assert!(first.iter().zip(col0).all(|(a, b)| a.to_bits() == b.to_bits()), "{isa} W={W} forward_first n={n}");
+        }
         for isa in simd_levels() {
             let ctx = forward(isa);
             let (got, want) = (ctx.output(), want_ctx.output());

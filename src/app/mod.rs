@@ -47,15 +47,24 @@ pub fn run(command: Command) -> Result<(), Failure> {
             set_threads(threads)?;
             eval::run(&model, &data, &split, depth, crop, limit, json)?;
         }
-        Command::Bench { json, reps, log2t, threads } => {
+        Command::Bench { json, reps, log2t, threads, models, data } => {
             set_threads(threads)?;
+            let trained = match &data {
+                Some(d) => models.iter().map(|m| bench::TrainedView::load(m, d)).collect::<Result<Vec<_>, _>>()?,
+                None => Vec::new(),
+            };
+            for (i, t) in trained.iter().enumerate() {
+                if trained[..i].iter().any(|u| u.figure() == t.figure()) {
+                    return Err(format!("bench: two --model files would both time {}", t.figure()).into());
+                }
+            }
             let defaults = BenchOptions::default();
             let opts = BenchOptions {
                 reps: reps.unwrap_or(defaults.reps),
                 log2_table_size: log2t.unwrap_or(defaults.log2_table_size),
                 ..defaults
             };
-            let report = bench::run(&opts);
+            let report = bench::run(&opts, trained);
             if json {
                 println!("{}", report.to_json());
             } else {

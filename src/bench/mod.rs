@@ -10,6 +10,7 @@
 
 pub mod peak;
 
+use crate::data::{Dataset, LoadOptions};
 use crate::encoding::{FeatureLevels, HashGrid, HashGridConfig, HashGridParams};
 use crate::field::mix::{DensityMix, MixKind};
 use crate::field::mixnet::{default_mixnet_grid, MixnetEncoding};
@@ -18,14 +19,50 @@ use crate::field::NerfConfig;
 use crate::io::LoadedModel;
 use crate::mlp::{Activation, Mlp, MlpConfig, MlpContext, MlpParams, MlpWorkspace};
 use crate::onboard::{DepthKind, DepthMethod, DepthRenderer, DepthRequest};
-use crate::render::{DensityThreshold, Intrinsics};
+use crate::render::{DensityThreshold, Intrinsics, Pose};
 use crate::rng::Rng;
 use crate::simd::Isa;
 use crate::train::trainer::{train_nerf, train_residual, StepStats, TrainConfig};
 use crate::train::{Adam, AdamConfig};
 use crate::GradientMode;
 use std::hint::black_box;
+use std::path::Path;
 use std::time::Instant;
+
+/// A trained model whose depth rendering `rnerf bench --model M --data D` times in place of
+/// the bench's own short-trained one — those are still foggy, so their depth rays march far
+/// (README "Depth rendering"). Its kind picks the figure: a NeRF `render_depth_ms_200`, a
+/// residual model `render_depth_ms_200_residual`.
+pub struct TrainedView {
+    /// The model, as loaded.
+    pub model: LoadedModel,
+    /// The first test view of `D`, rescaled to 200 pixels wide.
+    pub intrinsics: Intrinsics,
+    /// Its pose.
+    pub pose: Pose,
+}
+
+impl TrainedView {
+    /// Loads `model` and the first test view of `data` (errors name the file).
+    pub fn load(model: &Path, data: &Path) -> Result<TrainedView, String> {
+        let loaded = crate::io::load_model(model)?;
+        let opts = LoadOptions { ground_truth: false, ..Default::default() };
+        let test = Dataset::load(data, "test", &opts).map_err(|e| e.to_string())?;
+        let view = test.views.first().ok_or_else(|| format!("{}: the test split has no views", data.display()))?;
+        let (k, s) = (view.intrinsics, 200.0 / view.intrinsics.width as f32);
+        let height = ((k.height as f32 * s).round() as u32).max(1);
+        let intrinsics = Intrinsics { width: 200, height, fx: k.fx * s, fy: k.fy * s, cx: k.cx * s, cy: k.cy * s };
+        Ok(TrainedView { model: loaded, intrinsics, pose: view.pose })
+    }
+
+    /// The figure it is timed under.
+    pub fn figure(&self) -> &'static str {
+        match self.model {
+            LoadedModel::Nerf(_) => "render_depth_ms_200",
+            LoadedModel::Residual(_) => "render_depth_ms_200_residual",
+        }
+    }
+}
 
 /// What to measure and how long.
 #[derive(Clone, Debug)]
@@ -284,7 +321,7 @@ pub fn bare_gather(grid: &HashGrid, table: &[u32], samples: usize, seed: u32) ->
 }
 
 /// Runs every benchmark. Takes a few seconds at `scale = 1`.
-pub fn run(opts: &BenchOptions) -> BenchReport {
+pub fn run(opts: &BenchOptions, trained: Vec<TrainedView>) -> BenchReport {
     let isa = opts.isa;
     let reps = opts.reps.max(1);
     let threads = rayon::current_num_threads();
@@ -451,12 +488,18 @@ pub fn run(opts: &BenchOptions) -> BenchReport {
         method: DepthMethod::Threshold(DensityThreshold::Sigma(crate::cli::DEFAULT_M)),
         kind: DepthKind::Z,
     };
-    let mut z = vec![0f32; 200 * 200];
-    for (name, model) in [
-        ("render_depth_ms_200", LoadedModel::Nerf(Box::new(nerf.clone()))),
-        ("render_depth_ms_200_residual", LoadedModel::Residual(Box::new(residual))),
-    ] {
-        let mut camera = DepthRenderer::new(model);
+    let mut subjects = vec![
+        TrainedView { model: LoadedModel::Nerf(Box::new(nerf.clone())), intrinsics: k, pose },
+        TrainedView { model: LoadedModel::Residual(Box::new(residual)), intrinsics: k, pose },
+    ];
+    for t in trained {
+        let same = subjects.iter().position(|s| s.figure() == t.figure()).expect("both kinds are listed");
+        subjects[same] = t;
+    }
+    for s in subjects {
+        let (name, k, pose) = (s.figure(), s.intrinsics, s.pose);
+        let mut z = vec![0f32; (k.width * k.height) as usize];
+        let mut camera = DepthRenderer::new(s.model);
         let v = time_reps(reps, || camera.depth(&k, &pose, request, &mut z).expect("a valid camera and buffer"));
         push(name, "ms", v.iter().map(|s| s * 1e3).collect());
     }

@@ -244,6 +244,23 @@ impl Mixnet {
         }
     }
 
+    /// [`Mixnet::chunk_forward`]'s logits alone (the same bits; depth-only rendering): `c` is
+    /// not a chunk [`Mixnet::chunk_keep`] or a backward can continue.
+    pub fn chunk_logits(
+        &self,
+        isa: Isa,
+        params: &MixnetParams,
+        positions: &[Vec3],
+        shared: Option<&[f32]>,
+        logits: &mut [f32],
+        c: &mut MixnetChunk,
+    ) {
+        let n = positions.len();
+        assert_eq!(logits.len(), n, "mixnet: output length differs from the sample count");
+        let enc = self.features(isa, params, positions, shared, &mut c.unit, &mut c.enc, false);
+        self.mlp.forward_first(isa, &params.mlp, enc, n, &mut c.ctx, logits);
+    }
+
     /// Keeps rows `keep` (strictly increasing) of the last [`Mixnet::chunk_forward`].
     pub fn chunk_keep(&self, c: &mut MixnetChunk, keep: &[u32]) {
         if let Some(grid) = &self.grid {

@@ -285,7 +285,7 @@ impl NerfField {
         let raw_parts = split_rows(raw, n, 1);
         ctx.slots.par_iter_mut().zip(raw_parts).enumerate().for_each(|(s, (slot, out))| {
             let r = slot_range(n, s);
-            self.nets_density(isa, params, &enc[r.start * w..r.end * w], out, &mut slot.nets);
+            self.nets_density_only(isa, params, &enc[r.start * w..r.end * w], out, &mut slot.nets);
         });
     }
 
@@ -340,11 +340,32 @@ impl NerfField {
         c: &mut FieldChunk,
     ) {
         assert_eq!(raw.len(), positions.len(), "field: output length differs from the sample count");
+        self.chunk_encode(isa, params, positions, c);
+        self.nets_density(isa, params, &c.enc, raw, &mut c.nets);
+    }
+
+    /// A chunk's positions in the unit cube and their encodings, into `c`, on this thread.
+    fn chunk_encode(&self, isa: Isa, params: &NerfParams, positions: &[Vec3], c: &mut FieldChunk) {
         c.unit.clear();
         c.unit.extend(positions.iter().map(|&p| self.config.aabb.to_unit(p).to_array()));
         c.enc.resize(positions.len() * self.grid.output_width(), 0.0);
         self.grid.forward(isa, &params.grid.table, &c.unit, &mut c.enc);
-        self.nets_density(isa, params, &c.enc, raw, &mut c.nets);
+    }
+
+    /// [`NerfField::density`] on this thread, for a chunk (depth-only rendering): encodes
+    /// `positions` into `c` and writes raw densities `s`; the chunk is not one
+    /// [`NerfField::chunk_colour`] can continue (no geometry features are computed).
+    pub fn chunk_density_only(
+        &self,
+        isa: Isa,
+        params: &NerfParams,
+        positions: &[Vec3],
+        raw: &mut [f32],
+        c: &mut FieldChunk,
+    ) {
+        assert_eq!(raw.len(), positions.len(), "field: output length differs from the sample count");
+        self.chunk_encode(isa, params, positions, c);
+        self.nets_density_only(isa, params, &c.enc, raw, &mut c.nets);
     }
 
     /// Keeps rows `keep` (strictly increasing) of the last [`NerfField::chunk_density`]: the
@@ -394,6 +415,13 @@ impl NerfField {
         for (o, row) in raw.iter_mut().zip(nets.density.output().chunks(self.density.output_stride())) {
             *o = row[0];
         }
+    }
+
+    /// Raw densities only (the density network's first output; the same bits as
+    /// [`NerfField::nets_density`]'s, without the geometry features): `nets` cannot go on to
+    /// the colour network.
+    fn nets_density_only(&self, isa: Isa, params: &NerfParams, enc: &[f32], raw: &mut [f32], nets: &mut Nets) {
+        self.density.forward_first(isa, &params.density, enc, raw.len(), &mut nets.density, raw);
     }
 
     /// The colour network on the rows of the last [`NerfField::nets_density`], seen along

@@ -331,6 +331,33 @@ impl ResidualField {
         sigma: &mut [f32],
         c: &mut ResidualChunk,
     ) {
+        self.chunk_sigma(isa, params, positions, sigma, c, true);
+    }
+
+    /// [`ResidualField::density`] on this thread, for a chunk (depth-only rendering): the
+    /// density networks' and the Mixnet's first outputs only; `c` is not a chunk
+    /// [`ResidualField::chunk_colour`] can continue.
+    pub fn chunk_density_only(
+        &self,
+        isa: Isa,
+        params: &ResidualParams,
+        positions: &[Vec3],
+        sigma: &mut [f32],
+        c: &mut ResidualChunk,
+    ) {
+        self.chunk_sigma(isa, params, positions, sigma, c, false);
+    }
+
+    /// Mixed σ of a chunk; `for_colour`: keep everything the colour half needs.
+    fn chunk_sigma(
+        &self,
+        isa: Isa,
+        params: &ResidualParams,
+        positions: &[Vec3],
+        sigma: &mut [f32],
+        c: &mut ResidualChunk,
+        for_colour: bool,
+    ) {
         let n = positions.len();
         assert_eq!(sigma.len(), n, "residual: output length differs from the sample count");
         let bg = &self.background;
@@ -338,11 +365,19 @@ impl ResidualField {
         c.s_res.resize(n, 0.0);
         c.logits.clear();
         c.logits.resize(n, 0.0);
-        bg.field.chunk_density(isa, &bg.params, positions, &mut c.s_bg, &mut c.bg);
-        self.residual.chunk_density(isa, &params.residual, positions, &mut c.s_res, &mut c.res);
+        if for_colour {
+            bg.field.chunk_density(isa, &bg.params, positions, &mut c.s_bg, &mut c.bg);
+            self.residual.chunk_density(isa, &params.residual, positions, &mut c.s_res, &mut c.res);
+        } else {
+            bg.field.chunk_density_only(isa, &bg.params, positions, &mut c.s_bg, &mut c.bg);
+            self.residual.chunk_density_only(isa, &params.residual, positions, &mut c.s_res, &mut c.res);
+        }
         if matches!(self.kind, MixKind::Mixnet(_)) {
             let shared = (self.mixnet.grid().is_none()).then(|| c.res.features());
-            self.mixnet.chunk_forward(isa, &params.mixnet, positions, shared, &mut c.logits, &mut c.mix);
+            match for_colour {
+                true => self.mixnet.chunk_forward(isa, &params.mixnet, positions, shared, &mut c.logits, &mut c.mix),
+                false => self.mixnet.chunk_logits(isa, &params.mixnet, positions, shared, &mut c.logits, &mut c.mix),
+            }
         }
         for i in 0..n {
             let x = MixInput { s_bg: c.s_bg[i], c_bg: [0.0; 3], s_res: c.s_res[i], c_res: [0.0; 3], m: c.logits[i] };

@@ -87,6 +87,81 @@ unsafe fn matmul_unchecked(x: &[f32], rows: usize, k: usize, w: &[f32], o: usize
     }
 }
 
+/// The columns of an 8×8 block: `rows[i][j]` → `out[j][i]`.
+///
+/// # Safety
+/// AVX2.
+#[inline(always)]
+unsafe fn transpose8(r: [__m256; 8]) -> [__m256; 8] {
+    // SAFETY: register-only AVX operations; the caller guarantees AVX2.
+    unsafe {
+        let t0 = _mm256_unpacklo_ps(r[0], r[1]);
+        let t1 = _mm256_unpackhi_ps(r[0], r[1]);
+        let t2 = _mm256_unpacklo_ps(r[2], r[3]);
+        let t3 = _mm256_unpackhi_ps(r[2], r[3]);
+        let t4 = _mm256_unpacklo_ps(r[4], r[5]);
+        let t5 = _mm256_unpackhi_ps(r[4], r[5]);
+        let t6 = _mm256_unpacklo_ps(r[6], r[7]);
+        let t7 = _mm256_unpackhi_ps(r[6], r[7]);
+        let u0 = _mm256_shuffle_ps::<0x44>(t0, t2);
+        let u1 = _mm256_shuffle_ps::<0xEE>(t0, t2);
+        let u2 = _mm256_shuffle_ps::<0x44>(t1, t3);
+        let u3 = _mm256_shuffle_ps::<0xEE>(t1, t3);
+        let u4 = _mm256_shuffle_ps::<0x44>(t4, t6);
+        let u5 = _mm256_shuffle_ps::<0xEE>(t4, t6);
+        let u6 = _mm256_shuffle_ps::<0x44>(t5, t7);
+        let u7 = _mm256_shuffle_ps::<0xEE>(t5, t7);
+        [
+            _mm256_permute2f128_ps::<0x20>(u0, u4),
+            _mm256_permute2f128_ps::<0x20>(u1, u5),
+            _mm256_permute2f128_ps::<0x20>(u2, u6),
+            _mm256_permute2f128_ps::<0x20>(u3, u7),
+            _mm256_permute2f128_ps::<0x31>(u0, u4),
+            _mm256_permute2f128_ps::<0x31>(u1, u5),
+            _mm256_permute2f128_ps::<0x31>(u2, u6),
+            _mm256_permute2f128_ps::<0x31>(u3, u7),
+        ]
+    }
+}
+
+/// AVX2 twin of [`super::scalar::matmul_first`]: 8 rows per vector (lane = row), the rows'
+/// 8×8 blocks transposed in registers so each lane runs [`tile_fwd`]'s FMA chain for column 0
+/// — the same bits as [`matmul`]'s column 0.
+///
+/// # Safety
+/// The CPU must support AVX2 and FMA.
+#[target_feature(enable = "avx2,fma")]
+unsafe fn matmul_first_unchecked(x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: &mut [f32], relu: bool) {
+    assert!(k.is_multiple_of(8) && x.len() >= rows * k && w.len() >= k * o && out.len() >= rows);
+    let (xp, wp) = (x.as_ptr(), w.as_ptr());
+    let zero = _mm256_setzero_ps();
+    let mut b = 0;
+    while b + 8 <= rows {
+        let mut acc = zero;
+        for k0 in (0..k).step_by(8) {
+            // SAFETY: rows b..b+8 and columns k0..k0+8 of x, rows k0..k0+8 of w are in bounds
+            // (asserted above); out has b + 8 <= rows values.
+            unsafe {
+                let block = transpose8(std::array::from_fn(|i| _mm256_loadu_ps(xp.add((b + i) * k + k0))));
+                for (c, col) in block.into_iter().enumerate() {
+                    acc = _mm256_fmadd_ps(col, _mm256_set1_ps(*wp.add((k0 + c) * o)), acc);
+                }
+            }
+        }
+        if relu {
+            acc = _mm256_max_ps(acc, zero);
+        }
+        // SAFETY: b + 8 <= rows <= out.len().
+        unsafe { _mm256_storeu_ps(out.as_mut_ptr().add(b), acc) };
+        b += 8;
+    }
+    for (r, y) in out[b..rows].iter_mut().enumerate() {
+        let row = &x[(b + r) * k..(b + r + 1) * k];
+        let acc = row.iter().enumerate().fold(0.0f32, |acc, (kk, &xv)| xv.mul_add(w[kk * o], acc));
+        *y = if relu { acc.max(0.0) } else { acc };
+    }
+}
+
 /// `dw[kk0..kk0+KK][j..j+16] += Σ_b x[b][kk0..kk0+KK]ᵀ · dz[b][j..j+16]`.
 ///
 /// # Safety
@@ -153,5 +228,7 @@ unsafe fn matmul_tn_acc_unchecked(x: &[f32], rows: usize, k: usize, dz: &[f32], 
 }
 
 safe_entry!(Avx2, matmul => matmul_unchecked(x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: &mut [f32], relu: bool));
+
+safe_entry!(Avx2, matmul_first => matmul_first_unchecked(x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: &mut [f32], relu: bool));
 
 safe_entry!(Avx2, matmul_tn_acc => matmul_tn_acc_unchecked(x: &[f32], rows: usize, k: usize, dz: &[f32], o: usize, dw: &mut [f32]));

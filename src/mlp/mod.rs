@@ -173,6 +173,55 @@ impl<const W: usize> Mlp<W> {
         }
     }
 
+    /// The network's first output only (activated), for `n` rows of `input`, into `out`
+    /// (`n` values): the same bits as [`Mlp::forward`]'s column 0, without the rest of the
+    /// last layer (a density network's σ without its geometry features: 1 of 16 columns).
+    /// `ctx` is scratch afterwards — nothing [`Mlp::backward`] can use. One thread.
+    pub fn forward_first(
+        &self,
+        isa: Isa,
+        params: &MlpParams,
+        input: &[f32],
+        n: usize,
+        ctx: &mut MlpContext,
+        out: &mut [f32],
+    ) {
+        let params = params.weights();
+        assert_eq!(params.len(), self.n_params, "mlp: parameter buffer has the wrong length");
+        assert!(input.len() >= n * self.input_stride(), "mlp: input holds fewer than n rows");
+        assert!(out.len() >= n, "mlp: output holds fewer than n values");
+        let last = self.layers.len() - 1;
+        ctx.prepare(n, self.layers[..last].iter().map(|l| l.o));
+        ctx.n = 0;
+        let act = self.config.output_activation;
+        for t0 in (0..n).step_by(TILE) {
+            let rows = TILE.min(n - t0);
+            for (l, s) in self.layers.iter().enumerate() {
+                let w = &params[s.offset..s.offset + s.k * s.o];
+                let (before, after) = ctx.acts.split_at_mut(l);
+                let x = if l == 0 {
+                    &input[t0 * s.k..(t0 + rows) * s.k]
+                } else {
+                    &before[l - 1][t0 * s.k..(t0 + rows) * s.k]
+                };
+                if l == last {
+                    let y = &mut out[t0..t0 + rows];
+                    matmul_first(isa, x, rows, s.k, w, s.o, y, act == Activation::Relu);
+                    if !act.fused_in_kernel() {
+                        y.iter_mut().for_each(|v| *v = act.forward(*v));
+                    }
+                } else {
+                    let y = &mut after[0][t0 * s.o..(t0 + rows) * s.o];
+                    let hidden = self.config.hidden_activation;
+                    matmul(isa, x, rows, s.k, w, s.o, y, hidden == Activation::Relu);
+                    if !hidden.fused_in_kernel() {
+                        y.iter_mut().for_each(|v| *v = hidden.forward(*v));
+                    }
+                }
+            }
+        }
+    }
+
     /// Back-propagates `d_output` (`n × output_stride()`, dL/d of the activated outputs;
     /// padding columns are ignored) through the pass saved in `ctx`.
     /// dL/dweights goes to `grads` per `mode`; dL/dinput to `d_input` (`n × input_stride()`)
@@ -266,6 +315,16 @@ fn matmul(isa: Isa, x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: 
     }
 }
 
+fn matmul_first(isa: Isa, x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: &mut [f32], relu: bool) {
+    match isa.level() {
+        #[cfg(target_arch = "x86_64")]
+        CpuLevel::Avx2 => avx2::matmul_first(isa, x, rows, k, w, o, out, relu),
+        #[cfg(target_arch = "aarch64")]
+        CpuLevel::Neon => neon::matmul_first(isa, x, rows, k, w, o, out, relu),
+        _ => scalar::matmul_first(x, rows, k, w, o, out, relu),
+    }
+}
+
 fn matmul_tn_acc(isa: Isa, x: &[f32], rows: usize, k: usize, dz: &[f32], o: usize, dw: &mut [f32]) {
     match isa.level() {
         #[cfg(target_arch = "x86_64")]
@@ -280,6 +339,12 @@ fn matmul_tn_acc(isa: Isa, x: &[f32], rows: usize, k: usize, dz: &[f32], o: usiz
 pub fn matmul_with(isa: Isa, x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: &mut [f32], relu: bool) {
     assert!(o.is_multiple_of(16) && k.is_multiple_of(4), "matmul: o must be a multiple of 16, k of 4");
     matmul(isa, x, rows, k, w, o, out, relu)
+}
+
+/// The public face of the first-column kernel, for tests and benchmarks: `out[b] = relu?(x[b]·W[:, 0])`.
+pub fn matmul_first_with(isa: Isa, x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: &mut [f32], relu: bool) {
+    assert!(o.is_multiple_of(16) && k.is_multiple_of(8), "matmul_first: o must be a multiple of 16, k of 8");
+    matmul_first(isa, x, rows, k, w, o, out, relu)
 }
 
 /// The public face of the weight-gradient kernel, for tests and benchmarks: `dw += xᵀ·dz`.

@@ -48,6 +48,52 @@ unsafe fn matmul_unchecked(x: &[f32], rows: usize, k: usize, w: &[f32], o: usize
     }
 }
 
+/// NEON twin of [`super::scalar::matmul_first`]: 4 rows per vector (lane = row), the rows'
+/// 4×4 blocks transposed in registers so each lane runs [`matmul_unchecked`]'s FMA chain for
+/// column 0 — the same bits as its column 0.
+///
+/// # Safety
+/// The CPU must support NEON.
+#[target_feature(enable = "neon")]
+unsafe fn matmul_first_unchecked(x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: &mut [f32], relu: bool) {
+    assert!(k.is_multiple_of(4) && x.len() >= rows * k && w.len() >= k * o && out.len() >= rows);
+    let (xp, wp) = (x.as_ptr(), w.as_ptr());
+    let zero = vdupq_n_f32(0.0);
+    let mut b = 0;
+    while b + 4 <= rows {
+        let mut acc = zero;
+        for k0 in (0..k).step_by(4) {
+            // SAFETY: rows b..b+4 and columns k0..k0+4 of x, rows k0..k0+4 of w are in bounds
+            // (asserted above).
+            unsafe {
+                let r: [float32x4_t; 4] = std::array::from_fn(|i| vld1q_f32(xp.add((b + i) * k + k0)));
+                // 4×4 transpose: pairs of rows interleaved, then 64-bit halves.
+                let (a0, a1) = (vtrn1q_f32(r[0], r[1]), vtrn2q_f32(r[0], r[1]));
+                let (a2, a3) = (vtrn1q_f32(r[2], r[3]), vtrn2q_f32(r[2], r[3]));
+                let f = |lo: float32x4_t, hi: float32x4_t, first: bool| {
+                    let (l, h) = (vreinterpretq_f64_f32(lo), vreinterpretq_f64_f32(hi));
+                    vreinterpretq_f32_f64(if first { vtrn1q_f64(l, h) } else { vtrn2q_f64(l, h) })
+                };
+                let cols = [f(a0, a2, true), f(a1, a3, true), f(a0, a2, false), f(a1, a3, false)];
+                for (c, col) in cols.into_iter().enumerate() {
+                    acc = vfmaq_n_f32(acc, col, *wp.add((k0 + c) * o));
+                }
+            }
+        }
+        if relu {
+            acc = vmaxq_f32(acc, zero);
+        }
+        // SAFETY: b + 4 <= rows <= out.len().
+        unsafe { vst1q_f32(out.as_mut_ptr().add(b), acc) };
+        b += 4;
+    }
+    for (r, y) in out[b..rows].iter_mut().enumerate() {
+        let row = &x[(b + r) * k..(b + r + 1) * k];
+        let acc = row.iter().enumerate().fold(0.0f32, |acc, (kk, &xv)| xv.mul_add(w[kk * o], acc));
+        *y = if relu { acc.max(0.0) } else { acc };
+    }
+}
+
 /// NEON twin of [`super::scalar::matmul_tn_acc`].
 ///
 /// # Safety
@@ -94,5 +140,7 @@ unsafe fn matmul_tn_acc_unchecked(x: &[f32], rows: usize, k: usize, dz: &[f32], 
 }
 
 safe_entry!(Neon, matmul => matmul_unchecked(x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: &mut [f32], relu: bool));
+
+safe_entry!(Neon, matmul_first => matmul_first_unchecked(x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: &mut [f32], relu: bool));
 
 safe_entry!(Neon, matmul_tn_acc => matmul_tn_acc_unchecked(x: &[f32], rows: usize, k: usize, dz: &[f32], o: usize, dw: &mut [f32]));

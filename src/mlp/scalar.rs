@@ -21,6 +21,18 @@ pub fn matmul(x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: &mut [
     }
 }
 
+/// `out[b] = act(Σ_kk x[b][kk] · w[kk][0])`: column 0 of [`matmul`] alone, summed in the same
+/// order (a network's first output without the rest of its last layer).
+pub fn matmul_first(x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: &mut [f32], relu: bool) {
+    for (b, y) in out[..rows].iter_mut().enumerate() {
+        let mut acc = 0.0f32;
+        for kk in 0..k {
+            acc += x[b * k + kk] * w[kk * o];
+        }
+        *y = if relu { acc.max(0.0) } else { acc };
+    }
+}
+
 /// `dw[kk][j] += Σ_b x[b][kk] · dz[b][j]` (the weight gradient `xᵀ·dz`).
 pub fn matmul_tn_acc(x: &[f32], rows: usize, k: usize, dz: &[f32], o: usize, dw: &mut [f32]) {
     for b in 0..rows {

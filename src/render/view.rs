@@ -301,9 +301,9 @@ impl<M: Model> Worker<M> {
                 );
                 scene.model.betas(&self.ctx, &mut self.beta);
             } else {
-                // On this thread, a chunk at a time (the fused training step's density pass).
+                // On this thread, a chunk at a time, density networks' first outputs only.
                 for (p, s) in self.positions.chunks(DEPTH_CHUNK).zip(self.sigma.chunks_mut(DEPTH_CHUNK)) {
-                    scene.model.chunk_density(isa, scene.params, p, s, &mut self.chunk);
+                    scene.model.chunk_density_only(isa, scene.params, p, s, &mut self.chunk);
                 }
             }
             let states = &mut self.states;

@@ -86,6 +86,17 @@ pub trait Model: Sync {
     /// Fused step, on this thread: activated density σ of a chunk's samples (encodings and
     /// density networks), saving what the rest of the chunk needs.
     fn chunk_density(&self, isa: Isa, p: &Self::Params, positions: &[Vec3], sigma: &mut [f32], c: &mut Self::Chunk);
+    /// [`Model::density`] on this thread, for a chunk (depth-only rendering): density
+    /// networks' first outputs only, the same σ; `c` is then scratch, not a chunk
+    /// [`Model::chunk_colour`] can continue.
+    fn chunk_density_only(
+        &self,
+        isa: Isa,
+        p: &Self::Params,
+        positions: &[Vec3],
+        sigma: &mut [f32],
+        c: &mut Self::Chunk,
+    );
     /// Keeps rows `keep` (strictly increasing) of the last [`Model::chunk_density`] and writes
     /// their activated colours, seen along `dirs` (one per kept row), into `rgb`.
     fn chunk_colour(
@@ -277,6 +288,14 @@ impl Model for NerfField {
         c.sigma.extend_from_slice(sigma);
     }
 
+    fn chunk_density_only(&self, isa: Isa, p: &NerfParams, positions: &[Vec3], sigma: &mut [f32], c: &mut NerfChunk) {
+        c.raw.resize(positions.len(), 0.0);
+        NerfField::chunk_density_only(self, isa, p, positions, &mut c.raw, &mut c.field);
+        for (s, &r) in sigma.iter_mut().zip(&c.raw) {
+            *s = Activation::TruncExp.forward(r);
+        }
+    }
+
     fn chunk_colour(
         &self,
         isa: Isa,
@@ -396,6 +415,17 @@ impl Model for ResidualField {
         c: &mut ResidualChunk,
     ) {
         ResidualField::chunk_density(self, isa, p, positions, sigma, c);
+    }
+
+    fn chunk_density_only(
+        &self,
+        isa: Isa,
+        p: &ResidualParams,
+        positions: &[Vec3],
+        sigma: &mut [f32],
+        c: &mut ResidualChunk,
+    ) {
+        ResidualField::chunk_density_only(self, isa, p, positions, sigma, c);
     }
 
     fn chunk_colour(
