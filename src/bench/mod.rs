@@ -6,7 +6,8 @@
 //! the grid's size for the hash grid. The pipeline figures (`train_samples_per_s`,
 //! `train_residual_samples_per_s`, `render_depth_ms_200[_residual]`,
 //! `occupancy_update_ms[_warmup]`) come from a short training run on the
-//! synthetic workspace.
+//! synthetic workspace; the depth figures time trained models instead when given
+//! ([`TrainedView`], `rnerf bench --model M --data D`).
 
 pub mod peak;
 

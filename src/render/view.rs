@@ -3,8 +3,9 @@
 //!
 //! A view is cut into tiles of whole rows, each marched and evaluated by one thread start to
 //! finish. Rays are marched in **segments** so work stops where the answer is known:
-//! - [`ViewRenderer::depth`] — threshold depth only: evaluates only the density network and
-//!   stops each ray at its first solid sample (the robot's hot path), 4 samples per round;
+//! - [`ViewRenderer::depth`] — threshold depth only: evaluates only σ (the density networks'
+//!   first outputs, [`Model::chunk_density_only`], a chunk at a time on the worker's thread)
+//!   and stops each ray at its first solid sample (the robot's hot path), 4 samples per round;
 //! - [`ViewRenderer::full`] — colour, expected depth and threshold depth: the full field,
 //!   each ray stopped once it is opaque (`T < 1e-4`, as in training) and its threshold hit found;
 //!   segments of 16 samples doubling to 128.
