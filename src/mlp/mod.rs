@@ -4,7 +4,9 @@
 //! **Fusion.** [`Mlp::forward`] walks the batch in tiles of [`TILE`] samples and pushes each
 //! tile through *all* layers while it is in L1, saving every layer's output in the
 //! [`MlpContext`]; [`Mlp::backward`] walks the same tiles back through all layers, producing
-//! dL/dweights (per [`GradientMode`]) and optionally dL/dinput.
+//! dL/dweights (per [`GradientMode`]) and optionally dL/dinput. [`Mlp::forward_first`] is the
+//! forward for callers that read only the first output (a density network's σ when only depth
+//! is wanted): the last layer's column 0 alone, the same bits.
 //!
 //! **Padding.** Input and output widths are padded to multiples of 16 (the SIMD tile);
 //! callers lay rows out with [`Mlp::input_stride`] / [`Mlp::output_stride`]. Padded weights
