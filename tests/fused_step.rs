@@ -2,8 +2,9 @@
 //! → finish) against the batch path (forward → backward) on the same kept samples: the same
 //! densities and colours, and the same gradients in every parameter group (up to the order of
 //! floating-point sums), for the NeRF and for the residual model with each Mixnet encoding.
-//! The density-only paths (batch `density`, per-chunk `chunk_density_only`: first network
-//! outputs only) give the chunk path's σ bit for bit.
+//! Each chunk grows in two calls (`chunk_density` then `chunk_density_more`). The density-only
+//! paths (batch `density`, per-chunk `chunk_density_only`: first network outputs only) give the
+//! chunk path's σ bit for bit.
 
 use glam::Vec3;
 use residual_nerf::encoding::HashGridConfig;
@@ -73,10 +74,17 @@ fn fused_matches_batch<M: Model>(name: &str, model: &M, params: &M::Params, rng:
         let mut sigma = vec![0.0; range.len()];
         let mut only = vec![0.0; range.len()];
         model.chunk_density_only(isa, params, &pos[range.clone()], &mut only, &mut chunk);
-        model.chunk_density(isa, params, &pos[range.clone()], &mut sigma, &mut chunk);
+        // The chunk grows in two calls (as a ray evaluated segment by segment does).
+        let split = (range.len() * 2 / 5).max(1);
+        let (first, rest) = sigma.split_at_mut(split);
+        model.chunk_density(isa, params, &pos[range.start..range.start + split], first, &mut chunk);
+        model.chunk_density_more(isa, params, &pos[range.start + split..range.end], rest, &mut chunk);
         let mut batch = vec![0.0; range.len()];
         model.density(isa, params, &pos[range.clone()], &mut batch, &mut M::Context::default());
+        let mut whole = vec![0.0; range.len()];
+        model.chunk_density(isa, params, &pos[range.clone()], &mut whole, &mut M::Chunk::default());
         let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&whole), bits(&sigma), "{name}: a chunk grown in two calls is not one call's σ");
         assert_eq!(bits(&only), bits(&sigma), "{name}: chunk_density_only is not chunk_density's σ");
         assert_eq!(bits(&batch), bits(&sigma), "{name}: density is not chunk_density's σ");
         let keep: Vec<u32> = range.clone().filter(|i| i % 3 != 1).map(|i| (i - range.start) as u32).collect();

@@ -163,31 +163,39 @@ impl Mixnet {
         MixnetGrads { grid: crate::memory::zeroed_vec(grid), mlp: vec![0.0; self.mlp.n_params()] }
     }
 
-    /// The features the MLP reads for `positions`: encoded by the own grid into `unit` and `enc`
-    /// (on the rayon pool when `par`), or the caller's `shared` features.
+    /// The features the MLP reads for rows `0..from + positions.len()`: rows `from..` encoded
+    /// from `positions` by the own grid into `unit` and `enc` (on the rayon pool when `par`;
+    /// rows before `from` kept from the last call), or the caller's `shared` features (all rows).
+    #[allow(clippy::too_many_arguments)]
     fn features<'a>(
         &self,
         isa: Isa,
         params: &MixnetParams,
         positions: &[Vec3],
+        from: usize,
         shared: Option<&'a [f32]>,
         unit: &mut Vec<[f32; 3]>,
         enc: &'a mut Vec<f32>,
         par: bool,
     ) -> &'a [f32] {
-        let n = positions.len();
-        unit.clear();
+        let n = from + positions.len();
         let enc = match (&self.grid, shared) {
             (Some(grid), None) => {
+                let w = grid.output_width();
+                unit.truncate(from);
                 unit.extend(positions.iter().map(|&p| self.aabb.to_unit(p).to_array()));
-                enc.resize(n * grid.output_width(), 0.0);
+                enc.resize(n * w, 0.0);
+                let (unit, out) = (&unit[from..], &mut enc[from * w..]);
                 match par {
-                    true => grid.forward_par(isa, &params.grid.table, unit, enc),
-                    false => grid.forward(isa, &params.grid.table, unit, enc),
+                    true => grid.forward_par(isa, &params.grid.table, unit, out),
+                    false => grid.forward(isa, &params.grid.table, unit, out),
                 }
                 &enc[..]
             }
-            (None, Some(f)) => f,
+            (None, Some(f)) => {
+                unit.clear();
+                f
+            }
             _ => panic!("mixnet: shared features are given exactly when the encoding is shared"),
         };
         let w = self.mlp.input_stride();
@@ -211,7 +219,7 @@ impl Mixnet {
         assert_eq!(logits.len(), n, "mixnet: output length differs from the sample count");
         ctx.n = n;
         ctx.slots.resize_with(SLOTS, Slot::default);
-        let enc = self.features(isa, params, positions, shared, &mut ctx.unit, &mut ctx.enc, true);
+        let enc = self.features(isa, params, positions, 0, shared, &mut ctx.unit, &mut ctx.enc, true);
         let (w, so) = (self.mlp.input_stride(), self.mlp.output_stride());
         let parts = split_rows(logits, n, 1);
         ctx.slots.par_iter_mut().zip(parts).enumerate().for_each(|(s, (slot, out))| {
@@ -234,12 +242,42 @@ impl Mixnet {
         logits: &mut [f32],
         c: &mut MixnetChunk,
     ) {
+        self.chunk_forward_from(isa, params, positions, shared, logits, c, 0);
+    }
+
+    /// [`Mixnet::chunk_forward`] of more samples, appended to the chunk as its next rows
+    /// (`shared`, when given, holds the features of all the chunk's rows): the same bits as
+    /// one call on all of them.
+    pub fn chunk_forward_more(
+        &self,
+        isa: Isa,
+        params: &MixnetParams,
+        positions: &[Vec3],
+        shared: Option<&[f32]>,
+        logits: &mut [f32],
+        c: &mut MixnetChunk,
+    ) {
+        let from = c.ctx.n();
+        self.chunk_forward_from(isa, params, positions, shared, logits, c, from);
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn chunk_forward_from(
+        &self,
+        isa: Isa,
+        params: &MixnetParams,
+        positions: &[Vec3],
+        shared: Option<&[f32]>,
+        logits: &mut [f32],
+        c: &mut MixnetChunk,
+        from: usize,
+    ) {
         let n = positions.len();
         assert_eq!(logits.len(), n, "mixnet: output length differs from the sample count");
-        let enc = self.features(isa, params, positions, shared, &mut c.unit, &mut c.enc, false);
+        let enc = self.features(isa, params, positions, from, shared, &mut c.unit, &mut c.enc, false);
         let so = self.mlp.output_stride();
-        self.mlp.forward(isa, &params.mlp, enc, n, &mut c.ctx);
-        for (o, row) in logits.iter_mut().zip(c.ctx.output().chunks(so)) {
+        self.mlp.forward_from(isa, &params.mlp, enc, from, from + n, &mut c.ctx);
+        for (o, row) in logits.iter_mut().zip(c.ctx.output()[from * so..].chunks(so)) {
             *o = row[0];
         }
     }
@@ -257,7 +295,7 @@ impl Mixnet {
     ) {
         let n = positions.len();
         assert_eq!(logits.len(), n, "mixnet: output length differs from the sample count");
-        let enc = self.features(isa, params, positions, shared, &mut c.unit, &mut c.enc, false);
+        let enc = self.features(isa, params, positions, 0, shared, &mut c.unit, &mut c.enc, false);
         self.mlp.forward_first(isa, &params.mlp, enc, n, &mut c.ctx, logits);
     }
 

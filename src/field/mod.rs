@@ -309,7 +309,7 @@ impl NerfField {
         let parts = split_rows(raw, n, 1).into_par_iter().zip(split_rows(rgb_raw, n, 1));
         ctx.slots.par_iter_mut().zip(parts).enumerate().for_each(|(s, (slot, (raw, rgb)))| {
             let r = slot_range(n, s);
-            self.nets_density(isa, params, &enc[r.start * w..r.end * w], raw, &mut slot.nets);
+            self.nets_density(isa, params, &enc[r.start * w..r.end * w], 0, raw, &mut slot.nets);
             self.nets_colour(isa, params, &dirs[r], rgb, &mut slot.nets);
         });
     }
@@ -339,17 +339,47 @@ impl NerfField {
         raw: &mut [f32],
         c: &mut FieldChunk,
     ) {
-        assert_eq!(raw.len(), positions.len(), "field: output length differs from the sample count");
-        self.chunk_encode(isa, params, positions, c);
-        self.nets_density(isa, params, &c.enc, raw, &mut c.nets);
+        self.chunk_density_from(isa, params, positions, raw, c, 0);
     }
 
-    /// A chunk's positions in the unit cube and their encodings, into `c`, on this thread.
-    fn chunk_encode(&self, isa: Isa, params: &NerfParams, positions: &[Vec3], c: &mut FieldChunk) {
-        c.unit.clear();
+    /// [`NerfField::chunk_density`] of more samples, appended to the chunk as its next rows
+    /// (a ray evaluated segment by segment until it turns opaque): the same bits as one call
+    /// on all of them.
+    pub fn chunk_density_more(
+        &self,
+        isa: Isa,
+        params: &NerfParams,
+        positions: &[Vec3],
+        raw: &mut [f32],
+        c: &mut FieldChunk,
+    ) {
+        let from = c.len();
+        self.chunk_density_from(isa, params, positions, raw, c, from);
+    }
+
+    /// The chunk's rows `from..` become `positions`; their raw densities into `raw`.
+    fn chunk_density_from(
+        &self,
+        isa: Isa,
+        params: &NerfParams,
+        positions: &[Vec3],
+        raw: &mut [f32],
+        c: &mut FieldChunk,
+        from: usize,
+    ) {
+        assert_eq!(raw.len(), positions.len(), "field: output length differs from the sample count");
+        self.chunk_encode(isa, params, positions, c, from);
+        self.nets_density(isa, params, &c.enc, from, raw, &mut c.nets);
+    }
+
+    /// The chunk's rows `from..` become `positions`: their unit-cube coordinates and encodings,
+    /// into `c`, on this thread.
+    fn chunk_encode(&self, isa: Isa, params: &NerfParams, positions: &[Vec3], c: &mut FieldChunk, from: usize) {
+        let w = self.grid.output_width();
+        c.unit.truncate(from);
         c.unit.extend(positions.iter().map(|&p| self.config.aabb.to_unit(p).to_array()));
-        c.enc.resize(positions.len() * self.grid.output_width(), 0.0);
-        self.grid.forward(isa, &params.grid.table, &c.unit, &mut c.enc);
+        c.enc.resize(c.unit.len() * w, 0.0);
+        self.grid.forward(isa, &params.grid.table, &c.unit[from..], &mut c.enc[from * w..]);
     }
 
     /// [`NerfField::density`] on this thread, for a chunk (depth-only rendering): encodes
@@ -364,7 +394,7 @@ impl NerfField {
         c: &mut FieldChunk,
     ) {
         assert_eq!(raw.len(), positions.len(), "field: output length differs from the sample count");
-        self.chunk_encode(isa, params, positions, c);
+        self.chunk_encode(isa, params, positions, c, 0);
         self.nets_density_only(isa, params, &c.enc, raw, &mut c.nets);
     }
 
@@ -408,11 +438,12 @@ impl NerfField {
         self.nets_backward(isa, params, &c.enc, d_raw, d_rgb_raw, &mut c.nets, g, &mut c.d_enc);
     }
 
-    /// The density network on rows of encoded features `enc`; raw densities into `raw`.
-    fn nets_density(&self, isa: Isa, params: &NerfParams, enc: &[f32], raw: &mut [f32], nets: &mut Nets) {
-        let n = raw.len();
-        self.density.forward(isa, &params.density, enc, n, &mut nets.density);
-        for (o, row) in raw.iter_mut().zip(nets.density.output().chunks(self.density.output_stride())) {
+    /// The density network on rows `from..from + raw.len()` of encoded features `enc` (rows
+    /// before `from` kept from the last call: a growing chunk); their raw densities into `raw`.
+    fn nets_density(&self, isa: Isa, params: &NerfParams, enc: &[f32], from: usize, raw: &mut [f32], nets: &mut Nets) {
+        let (n, so) = (from + raw.len(), self.density.output_stride());
+        self.density.forward_from(isa, &params.density, enc, from, n, &mut nets.density);
+        for (o, row) in raw.iter_mut().zip(nets.density.output()[from * so..].chunks(so)) {
             *o = row[0];
         }
     }

@@ -331,7 +331,21 @@ impl ResidualField {
         sigma: &mut [f32],
         c: &mut ResidualChunk,
     ) {
-        self.chunk_sigma(isa, params, positions, sigma, c, true);
+        self.chunk_sigma(isa, params, positions, sigma, c, Some(0));
+    }
+
+    /// [`ResidualField::chunk_density`] of more samples, appended to the chunk as its next
+    /// rows: the same bits as one call on all of them.
+    pub fn chunk_density_more(
+        &self,
+        isa: Isa,
+        params: &ResidualParams,
+        positions: &[Vec3],
+        sigma: &mut [f32],
+        c: &mut ResidualChunk,
+    ) {
+        let from = c.s_bg.len();
+        self.chunk_sigma(isa, params, positions, sigma, c, Some(from));
     }
 
     /// [`ResidualField::density`] on this thread, for a chunk (depth-only rendering): the
@@ -345,10 +359,11 @@ impl ResidualField {
         sigma: &mut [f32],
         c: &mut ResidualChunk,
     ) {
-        self.chunk_sigma(isa, params, positions, sigma, c, false);
+        self.chunk_sigma(isa, params, positions, sigma, c, None);
     }
 
-    /// Mixed σ of a chunk; `for_colour`: keep everything the colour half needs.
+    /// Mixed σ of `positions`: as the chunk's rows `from..` when `rows` is `Some(from)`,
+    /// keeping everything the colour half needs; σ alone when `None`.
     fn chunk_sigma(
         &self,
         isa: Isa,
@@ -356,32 +371,44 @@ impl ResidualField {
         positions: &[Vec3],
         sigma: &mut [f32],
         c: &mut ResidualChunk,
-        for_colour: bool,
+        rows: Option<usize>,
     ) {
         let n = positions.len();
         assert_eq!(sigma.len(), n, "residual: output length differs from the sample count");
         let bg = &self.background;
-        c.s_bg.resize(n, 0.0);
-        c.s_res.resize(n, 0.0);
-        c.logits.clear();
-        c.logits.resize(n, 0.0);
-        if for_colour {
-            bg.field.chunk_density(isa, &bg.params, positions, &mut c.s_bg, &mut c.bg);
-            self.residual.chunk_density(isa, &params.residual, positions, &mut c.s_res, &mut c.res);
-        } else {
-            bg.field.chunk_density_only(isa, &bg.params, positions, &mut c.s_bg, &mut c.bg);
-            self.residual.chunk_density_only(isa, &params.residual, positions, &mut c.s_res, &mut c.res);
+        let from = rows.unwrap_or(0);
+        for v in [&mut c.s_bg, &mut c.s_res, &mut c.logits] {
+            v.truncate(from);
+            v.resize(from + n, 0.0);
+        }
+        let (s_bg, s_res) = (&mut c.s_bg[from..], &mut c.s_res[from..]);
+        match rows {
+            Some(0) => {
+                bg.field.chunk_density(isa, &bg.params, positions, s_bg, &mut c.bg);
+                self.residual.chunk_density(isa, &params.residual, positions, s_res, &mut c.res);
+            }
+            Some(_) => {
+                bg.field.chunk_density_more(isa, &bg.params, positions, s_bg, &mut c.bg);
+                self.residual.chunk_density_more(isa, &params.residual, positions, s_res, &mut c.res);
+            }
+            None => {
+                bg.field.chunk_density_only(isa, &bg.params, positions, s_bg, &mut c.bg);
+                self.residual.chunk_density_only(isa, &params.residual, positions, s_res, &mut c.res);
+            }
         }
         if matches!(self.kind, MixKind::Mixnet(_)) {
             let shared = (self.mixnet.grid().is_none()).then(|| c.res.features());
-            match for_colour {
-                true => self.mixnet.chunk_forward(isa, &params.mixnet, positions, shared, &mut c.logits, &mut c.mix),
-                false => self.mixnet.chunk_logits(isa, &params.mixnet, positions, shared, &mut c.logits, &mut c.mix),
+            let (mixnet, p, logits) = (&self.mixnet, &params.mixnet, &mut c.logits[from..]);
+            match rows {
+                Some(0) => mixnet.chunk_forward(isa, p, positions, shared, logits, &mut c.mix),
+                Some(_) => mixnet.chunk_forward_more(isa, p, positions, shared, logits, &mut c.mix),
+                None => mixnet.chunk_logits(isa, p, positions, shared, logits, &mut c.mix),
             }
         }
-        for i in 0..n {
-            let x = MixInput { s_bg: c.s_bg[i], c_bg: [0.0; 3], s_res: c.s_res[i], c_res: [0.0; 3], m: c.logits[i] };
-            sigma[i] = mix_forward(self.kind, &x).sigma;
+        for (i, s) in sigma.iter_mut().enumerate() {
+            let j = from + i;
+            let x = MixInput { s_bg: c.s_bg[j], c_bg: [0.0; 3], s_res: c.s_res[j], c_res: [0.0; 3], m: c.logits[j] };
+            *s = mix_forward(self.kind, &x).sigma;
         }
     }
 

@@ -150,12 +150,28 @@ impl<const W: usize> Mlp<W> {
     /// Runs the MLP on `n` rows of `input` (`n × input_stride()`), saving what backward needs
     /// in `ctx`; the result is `ctx.output()` (`n × output_stride()`). One thread.
     pub fn forward(&self, isa: Isa, params: &MlpParams, input: &[f32], n: usize, ctx: &mut MlpContext) {
+        self.forward_from(isa, params, input, 0, n, ctx);
+    }
+
+    /// [`Mlp::forward`] of rows `from..n` of `input`, keeping rows `0..from` of the last pass
+    /// in `ctx` (a chunk that grows: the same bits as one forward of all `n` rows, each row's
+    /// result being independent of the others).
+    pub fn forward_from(
+        &self,
+        isa: Isa,
+        params: &MlpParams,
+        input: &[f32],
+        from: usize,
+        n: usize,
+        ctx: &mut MlpContext,
+    ) {
         let params = params.weights();
         assert_eq!(params.len(), self.n_params, "mlp: parameter buffer has the wrong length");
         assert!(input.len() >= n * self.input_stride(), "mlp: input holds fewer than n rows");
+        assert!(from == 0 || (from <= n && from == ctx.n), "mlp: forward_from continues the last pass's rows");
         ctx.prepare(n, self.layers.iter().map(|l| l.o));
         let last = self.layers.len() - 1;
-        for t0 in (0..n).step_by(TILE) {
+        for t0 in (from..n).step_by(TILE) {
             let rows = TILE.min(n - t0);
             for (l, s) in self.layers.iter().enumerate() {
                 let act = if l == last { self.config.output_activation } else { self.config.hidden_activation };

@@ -86,6 +86,17 @@ pub trait Model: Sync {
     /// Fused step, on this thread: activated density σ of a chunk's samples (encodings and
     /// density networks), saving what the rest of the chunk needs.
     fn chunk_density(&self, isa: Isa, p: &Self::Params, positions: &[Vec3], sigma: &mut [f32], c: &mut Self::Chunk);
+    /// [`Model::chunk_density`] of more samples, appended to the chunk as its next rows (a ray
+    /// evaluated segment by segment until it turns opaque): the same bits as one
+    /// [`Model::chunk_density`] of all the chunk's samples.
+    fn chunk_density_more(
+        &self,
+        isa: Isa,
+        p: &Self::Params,
+        positions: &[Vec3],
+        sigma: &mut [f32],
+        c: &mut Self::Chunk,
+    );
     /// [`Model::density`] on this thread, for a chunk (depth-only rendering): density
     /// networks' first outputs only, the same σ; `c` is then scratch, not a chunk
     /// [`Model::chunk_colour`] can continue.
@@ -279,12 +290,22 @@ impl Model for NerfField {
     }
 
     fn chunk_density(&self, isa: Isa, p: &NerfParams, positions: &[Vec3], sigma: &mut [f32], c: &mut NerfChunk) {
-        c.raw.resize(positions.len(), 0.0);
-        NerfField::chunk_density(self, isa, p, positions, &mut c.raw, &mut c.field);
-        for (s, &r) in sigma.iter_mut().zip(&c.raw) {
+        c.sigma.clear();
+        c.raw.clear();
+        Model::chunk_density_more(self, isa, p, positions, sigma, c);
+    }
+
+    fn chunk_density_more(&self, isa: Isa, p: &NerfParams, positions: &[Vec3], sigma: &mut [f32], c: &mut NerfChunk) {
+        let from = c.sigma.len();
+        c.raw.resize(from + positions.len(), 0.0);
+        let raw = &mut c.raw[from..];
+        match from {
+            0 => NerfField::chunk_density(self, isa, p, positions, raw, &mut c.field),
+            _ => NerfField::chunk_density_more(self, isa, p, positions, raw, &mut c.field),
+        }
+        for (s, &r) in sigma.iter_mut().zip(raw.iter()) {
             *s = Activation::TruncExp.forward(r);
         }
-        c.sigma.clear();
         c.sigma.extend_from_slice(sigma);
     }
 
@@ -415,6 +436,17 @@ impl Model for ResidualField {
         c: &mut ResidualChunk,
     ) {
         ResidualField::chunk_density(self, isa, p, positions, sigma, c);
+    }
+
+    fn chunk_density_more(
+        &self,
+        isa: Isa,
+        p: &ResidualParams,
+        positions: &[Vec3],
+        sigma: &mut [f32],
+        c: &mut ResidualChunk,
+    ) {
+        ResidualField::chunk_density_more(self, isa, p, positions, sigma, c);
     }
 
     fn chunk_density_only(

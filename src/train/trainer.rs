@@ -128,8 +128,8 @@ pub struct StepStats {
     pub loss: f32,
     /// Mean samples per ray that reached the field's full forward and backward.
     pub samples_per_ray: f32,
-    /// Mean samples per ray the occupancy grid let through (before dropping those behind
-    /// the opaque point).
+    /// Mean samples per ray whose density was evaluated: those the occupancy grid let through,
+    /// up to the end of the segment ([`RAY_SEGMENT`], doubling) in which the ray turned opaque.
     pub marched_per_ray: f32,
     /// Seconds of training so far (time spent in the observer excluded).
     pub seconds: f64,
@@ -162,6 +162,10 @@ struct StepRays {
 /// stay in L1/L2 between its forward and backward: the MLPs run 1.6× faster on 64-row
 /// batches than on 16 384-row ones (BENCHMARKS.md, session 6).
 pub const CHUNK_SAMPLES: usize = 128;
+
+/// Samples of a ray's first evaluated segment; each further segment doubles. A ray's
+/// densities are evaluated only up to the segment in which it turns opaque.
+pub const RAY_SEGMENT: usize = 128;
 
 /// One slot's share of a fused step: its chunk's buffers, reused from step to step.
 struct Worker<C> {
@@ -223,20 +227,79 @@ impl<C> Worker<C> {
     ) {
         (self.loss, self.n_marched, self.n_kept) = (0.0, 0, 0);
         x.model.begin_slot(slot);
-        self.marched.clear();
+        self.begin_chunk();
         let mut first = range.start;
         for i in range.clone() {
-            let r = &rays.rays[i];
-            x.occupancy.march(r.origin, r.dir, &mut self.marched);
+            self.add_ray(x, &rays.rays[i]);
             if self.marched.len() >= CHUNK_SAMPLES || i + 1 == range.end {
                 self.run_chunk(x, rays, first..i + 1, slot);
-                self.marched.clear();
+                self.begin_chunk();
                 first = i + 1;
             }
         }
     }
 
-    /// One chunk: the rays `range`, marched into `self.marched`.
+    /// Empties the chunk's buffers.
+    fn begin_chunk(&mut self) {
+        self.marched.clear();
+        self.positions.clear();
+        self.dirs.clear();
+        self.sigma.clear();
+        self.keep.clear();
+        self.kept.clear();
+    }
+
+    /// Adds a ray to the chunk: marches it segment by segment ([`RAY_SEGMENT`] samples,
+    /// doubling), evaluates each segment's densities as the chunk's next rows, and stops at
+    /// the segment in which the ray turns opaque (`T < 1e-4`): the samples behind it would be
+    /// dropped unseen by compositing (nerfacc's early stop). Keeps the ray's samples up to its
+    /// opaque point. The samples are exactly those of marching the whole ray.
+    fn add_ray<M: Model<Chunk = C>>(&mut self, x: &StepInputs<M>, r: &Ray) {
+        let (occ, m) = (x.occupancy, &mut self.marched);
+        let max = occ.config().max_samples;
+        let start = m.t.len();
+        let first_kept = self.keep.len() as u32;
+        if let Some(span) = occ.span(r.origin, r.dir) {
+            let mut acc = RayAccumulator::new();
+            let (mut next, mut taken, mut segment) = (0, 0u32, RAY_SEGMENT);
+            loop {
+                let s0 = m.t.len();
+                let room = segment.min(max.saturating_sub(taken) as usize);
+                next = occ.march_segment(r.origin, r.dir, span, next..span.steps, room, &mut m.t, &mut m.delta);
+                let count = m.t.len() - s0;
+                if count == 0 {
+                    break;
+                }
+                taken += count as u32;
+                for &t in &m.t[s0..] {
+                    self.positions.push(r.at(t));
+                    self.dirs.push(r.dir);
+                }
+                self.sigma.resize(s0 + count, 0.0);
+                let (p, sigma) = (&self.positions[s0..], &mut self.sigma[s0..]);
+                match s0 {
+                    0 => x.model.chunk_density(x.isa, x.params, p, sigma, &mut self.chunk),
+                    _ => x.model.chunk_density_more(x.isa, x.params, p, sigma, &mut self.chunk),
+                }
+                for i in s0..s0 + count {
+                    if acc.is_opaque() {
+                        break;
+                    }
+                    acc.push(self.sigma[i], m.delta[i], 0.0, [0.0; 3]);
+                    self.keep.push(i as u32);
+                }
+                if acc.is_opaque() || next >= span.steps || taken >= max {
+                    break;
+                }
+                segment *= 2;
+            }
+        }
+        m.rays.push((start as u32, (m.t.len() - start) as u32));
+        self.kept.push((first_kept, self.keep.len() as u32 - first_kept));
+    }
+
+    /// The rest of a chunk whose rays [`Worker::add_ray`] evaluated: colours of the kept
+    /// samples, compositing and loss, and back through everything into `slot`.
     fn run_chunk<M: Model<Chunk = C>>(
         &mut self,
         x: &StepInputs<M>,
@@ -245,37 +308,7 @@ impl<C> Worker<C> {
         slot: &mut M::Slot,
     ) {
         let (cfg, m) = (x.cfg, &mut self.marched);
-        let n = m.len();
-        self.n_marched += n;
-        // Densities of every marched sample.
-        self.positions.clear();
-        self.dirs.clear();
-        for (r, &(s0, count)) in rays.rays[range.clone()].iter().zip(&m.rays) {
-            for &t in &m.t[s0 as usize..(s0 + count) as usize] {
-                self.positions.push(r.at(t));
-                self.dirs.push(r.dir);
-            }
-        }
-        self.sigma.resize(n, 0.0);
-        if n > 0 {
-            x.model.chunk_density(x.isa, x.params, &self.positions, &mut self.sigma, &mut self.chunk);
-        }
-        // Keep each ray's samples up to its opaque point (T < 1e-4): compositing ignores the
-        // rest, so colours and gradients are only computed for these (nerfacc's early stop).
-        self.keep.clear();
-        self.kept.clear();
-        for &(s0, count) in &m.rays {
-            let start = self.keep.len() as u32;
-            let mut acc = RayAccumulator::new();
-            for i in s0..s0 + count {
-                if acc.is_opaque() {
-                    break;
-                }
-                acc.push(self.sigma[i as usize], m.delta[i as usize], 0.0, [0.0; 3]);
-                self.keep.push(i);
-            }
-            self.kept.push((start, self.keep.len() as u32 - start));
-        }
+        self.n_marched += m.len();
         let k = self.keep.len();
         self.n_kept += k;
         for v in [&mut m.t, &mut m.delta, &mut self.sigma] {
