@@ -155,11 +155,7 @@ unsafe fn matmul_first_unchecked(x: &[f32], rows: usize, k: usize, w: &[f32], o:
         unsafe { _mm256_storeu_ps(out.as_mut_ptr().add(b), acc) };
         b += 8;
     }
-    for (r, y) in out[b..rows].iter_mut().enumerate() {
-        let row = &x[(b + r) * k..(b + r + 1) * k];
-        let acc = row.iter().enumerate().fold(0.0f32, |acc, (kk, &xv)| xv.mul_add(w[kk * o], acc));
-        *y = if relu { acc.max(0.0) } else { acc };
-    }
+    super::first_column_fma(x, k, w, o, b..rows, out, relu);
 }
 
 /// `dw[kk0..kk0+KK][j..j+16] += Σ_b x[b][kk0..kk0+KK]ᵀ · dz[b][j..j+16]`.

@@ -343,6 +343,26 @@ fn matmul_first(isa: Isa, x: &[f32], rows: usize, k: usize, w: &[f32], o: usize,
     }
 }
 
+/// Rows `rows` of the SIMD first-column kernels one at a time (their remainder rows), with the
+/// fused multiply-add chain each of their lanes runs — so the same bits as those lanes.
+#[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+#[inline(always)]
+fn first_column_fma(
+    x: &[f32],
+    k: usize,
+    w: &[f32],
+    o: usize,
+    rows: std::ops::Range<usize>,
+    out: &mut [f32],
+    relu: bool,
+) {
+    for b in rows {
+        let row = &x[b * k..(b + 1) * k];
+        let acc = row.iter().enumerate().fold(0.0f32, |acc, (kk, &xv)| xv.mul_add(w[kk * o], acc));
+        out[b] = if relu { acc.max(0.0) } else { acc };
+    }
+}
+
 fn matmul_tn_acc(isa: Isa, x: &[f32], rows: usize, k: usize, dz: &[f32], o: usize, dw: &mut [f32]) {
     match isa.level() {
         #[cfg(target_arch = "x86_64")]

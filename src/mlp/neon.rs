@@ -87,11 +87,7 @@ unsafe fn matmul_first_unchecked(x: &[f32], rows: usize, k: usize, w: &[f32], o:
         unsafe { vst1q_f32(out.as_mut_ptr().add(b), acc) };
         b += 4;
     }
-    for (r, y) in out[b..rows].iter_mut().enumerate() {
-        let row = &x[(b + r) * k..(b + r + 1) * k];
-        let acc = row.iter().enumerate().fold(0.0f32, |acc, (kk, &xv)| xv.mul_add(w[kk * o], acc));
-        *y = if relu { acc.max(0.0) } else { acc };
-    }
+    super::first_column_fma(x, k, w, o, b..rows, out, relu);
 }
 
 /// NEON twin of [`super::scalar::matmul_tn_acc`].
