@@ -419,8 +419,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
 struct Flags {
     data: Option<PathBuf>,
     out: Option<PathBuf>,
-    model: Option<PathBuf>,
-    /// Every `--model` given (bench takes several).
+    /// Every `--model` given: bench takes several, render and eval the last.
     models: Vec<PathBuf>,
     csv: Option<PathBuf>,
     split: Option<String>,
@@ -465,11 +464,7 @@ impl Flags {
             "fixed-background" => self.fixed_background = true,
             "data" => self.data = Some(path(p, name)?),
             "out" => self.out = Some(path(p, name)?),
-            "model" => {
-                let m = path(p, name)?;
-                self.models.push(m.clone());
-                self.model = Some(m);
-            }
+            "model" => self.models.push(path(p, name)?),
             "csv" => self.csv = Some(path(p, name)?),
             "background" => self.background = Some(path(p, name)?),
             "background-model" => self.background_model = Some(path(p, name)?),
@@ -591,11 +586,11 @@ impl Flags {
 
     fn need_path(&self, name: &str, command: &str) -> Result<PathBuf, CliError> {
         let v = match name {
-            "data" => &self.data,
-            "out" => &self.out,
-            _ => &self.model,
+            "data" => self.data.as_ref(),
+            "out" => self.out.as_ref(),
+            _ => self.models.last(),
         };
-        v.clone().ok_or_else(|| err(format!("{command}: --{name} is required (try 'rnerf help')")))
+        v.cloned().ok_or_else(|| err(format!("{command}: --{name} is required (try 'rnerf help')")))
     }
 
     fn mix_kind(&self) -> Result<Option<crate::field::mix::MixKind>, CliError> {

@@ -2,17 +2,19 @@
 //! → finish) against the batch path (forward → backward) on the same kept samples: the same
 //! densities and colours, and the same gradients in every parameter group (up to the order of
 //! floating-point sums), for the NeRF and for the residual model with each Mixnet encoding.
-//! Each chunk grows in two calls (`chunk_density` then `chunk_density_more`). The density-only
+//! Each chunk grows in two calls (`chunk_density` from row 0, then from the split). The density-only
 //! paths (batch `density`, per-chunk `chunk_density_only`: first network outputs only) give the
 //! chunk path's σ bit for bit.
+
+mod common;
 
 use glam::Vec3;
 use residual_nerf::encoding::HashGridConfig;
 use residual_nerf::field::mix::{DensityMix, MixKind};
 use residual_nerf::field::mixnet::MixnetEncoding;
 use residual_nerf::field::residual::{ResidualConfig, ResidualField};
-use residual_nerf::field::{Nerf, NerfConfig, NerfField};
-use residual_nerf::render::{Aabb, OccupancyConfig, OccupancyGrid};
+use residual_nerf::field::{Nerf, NerfConfig};
+use residual_nerf::render::Aabb;
 use residual_nerf::rng::Rng;
 use residual_nerf::simd::Isa;
 use residual_nerf::train::model::Model;
@@ -27,12 +29,7 @@ fn aabb() -> Aabb {
 
 /// A random NeRF with a lively grid (densities and colours far from constant).
 fn nerf(rng: &mut Rng) -> Nerf {
-    let field = NerfField::new(NerfConfig { grid: grid(), aabb: aabb() });
-    let mut params = field.init_params(rng);
-    params.grid.master.iter_mut().for_each(|v| *v = rng.uniform(-1.0, 1.0));
-    params.grid.sync_mirror();
-    let occupancy = OccupancyGrid::new(aabb(), OccupancyConfig { resolution: 4, ..Default::default() });
-    Nerf { field, params, occupancy }
+    common::lively_nerf(grid(), rng)
 }
 
 fn close(what: &str, got: &[f32], want: &[f32], rel: f32) {
@@ -77,12 +74,12 @@ fn fused_matches_batch<M: Model>(name: &str, model: &M, params: &M::Params, rng:
         // The chunk grows in two calls (as a ray evaluated segment by segment does).
         let split = (range.len() * 2 / 5).max(1);
         let (first, rest) = sigma.split_at_mut(split);
-        model.chunk_density(isa, params, &pos[range.start..range.start + split], first, &mut chunk);
-        model.chunk_density_more(isa, params, &pos[range.start + split..range.end], rest, &mut chunk);
+        model.chunk_density(isa, params, 0, &pos[range.start..range.start + split], first, &mut chunk);
+        model.chunk_density(isa, params, split, &pos[range.start + split..range.end], rest, &mut chunk);
         let mut batch = vec![0.0; range.len()];
         model.density(isa, params, &pos[range.clone()], &mut batch, &mut M::Context::default());
         let mut whole = vec![0.0; range.len()];
-        model.chunk_density(isa, params, &pos[range.clone()], &mut whole, &mut M::Chunk::default());
+        model.chunk_density(isa, params, 0, &pos[range.clone()], &mut whole, &mut M::Chunk::default());
         let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
         assert_eq!(bits(&whole), bits(&sigma), "{name}: a chunk grown in two calls is not one call's σ");
         assert_eq!(bits(&only), bits(&sigma), "{name}: chunk_density_only is not chunk_density's σ");

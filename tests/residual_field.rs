@@ -2,13 +2,15 @@
 //! finite differences of its forward, for every mixing rule: gradients reach the residual's
 //! grid and networks and the Mixnet's grid and network.
 
+mod common;
+
 use glam::Vec3;
 use residual_nerf::encoding::HashGridConfig;
 use residual_nerf::field::mix::{DensityMix, MixKind};
 use residual_nerf::field::mixnet::MixnetEncoding;
 use residual_nerf::field::residual::{ResidualConfig, ResidualContext, ResidualField, ResidualParams};
-use residual_nerf::field::{Nerf, NerfConfig, NerfField};
-use residual_nerf::render::{Aabb, OccupancyConfig, OccupancyGrid};
+use residual_nerf::field::{Nerf, NerfConfig};
+use residual_nerf::render::Aabb;
 use residual_nerf::rng::Rng;
 use residual_nerf::simd::Isa;
 use residual_nerf::GradientMode;
@@ -23,12 +25,7 @@ fn aabb() -> Aabb {
 
 /// A random (untrained) background with a lively table.
 fn background(rng: &mut Rng) -> Nerf {
-    let field = NerfField::new(NerfConfig { grid: grid(), aabb: aabb() });
-    let mut params = field.init_params(rng);
-    params.grid.master.iter_mut().for_each(|v| *v = rng.uniform(-1.0, 1.0));
-    params.grid.sync_mirror();
-    let occupancy = OccupancyGrid::new(aabb(), OccupancyConfig { resolution: 4, ..Default::default() });
-    Nerf { field, params, occupancy }
+    common::lively_nerf(grid(), rng)
 }
 
 /// L = Σ a_i σ_i + Σ b_i · c_i.

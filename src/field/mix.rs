@@ -119,6 +119,29 @@ pub fn mixed_log_density(kind: MixKind, x: &MixInput) -> f32 {
     }
 }
 
+/// [`mix_backward`] of every row: dL/ds_res, dL/dc′_res and dL/dm into `d_s`, `d_c`, `d_m`
+/// (resized to the rows).
+#[allow(clippy::too_many_arguments)]
+pub fn mix_backward_rows(
+    kind: MixKind,
+    inputs: &[MixInput],
+    outputs: &[MixOutput],
+    d_sigma: &[f32],
+    d_rgb: &[[f32; 3]],
+    d_s: &mut Vec<f32>,
+    d_c: &mut Vec<[f32; 3]>,
+    d_m: &mut Vec<f32>,
+) {
+    let n = inputs.len();
+    d_s.resize(n, 0.0);
+    d_c.resize(n, [0.0; 3]);
+    d_m.resize(n, 0.0);
+    for i in 0..n {
+        let g = mix_backward(kind, &inputs[i], &outputs[i], d_sigma[i], d_rgb[i]);
+        (d_s[i], d_c[i], d_m[i]) = (g.s_res, g.c_res, g.m);
+    }
+}
+
 /// Backward of [`mix_forward`] given `out` (its result) and dL/dσ, dL/dc.
 #[inline]
 pub fn mix_backward(kind: MixKind, x: &MixInput, out: &MixOutput, d_sigma: f32, d_rgb: [f32; 3]) -> MixGrad {

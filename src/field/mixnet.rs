@@ -231,46 +231,20 @@ impl Mixnet {
         });
     }
 
-    /// Chunk forward on this thread: logits `m` at `positions` (`shared` as in
-    /// [`Mixnet::forward`]: the residual's features of those rows, or `None` with an own grid).
+    /// Chunk forward on this thread: `positions` become the chunk's rows `from..` (rows before
+    /// `from` kept; `from = 0` starts a new chunk), their logits `m` into `logits`. `shared`,
+    /// when the encoding is shared, holds the features of all the chunk's rows. A chunk grown
+    /// in steps holds the same bits as one call.
+    #[allow(clippy::too_many_arguments)]
     pub fn chunk_forward(
         &self,
         isa: Isa,
         params: &MixnetParams,
-        positions: &[Vec3],
-        shared: Option<&[f32]>,
-        logits: &mut [f32],
-        c: &mut MixnetChunk,
-    ) {
-        self.chunk_forward_from(isa, params, positions, shared, logits, c, 0);
-    }
-
-    /// [`Mixnet::chunk_forward`] of more samples, appended to the chunk as its next rows
-    /// (`shared`, when given, holds the features of all the chunk's rows): the same bits as
-    /// one call on all of them.
-    pub fn chunk_forward_more(
-        &self,
-        isa: Isa,
-        params: &MixnetParams,
-        positions: &[Vec3],
-        shared: Option<&[f32]>,
-        logits: &mut [f32],
-        c: &mut MixnetChunk,
-    ) {
-        let from = c.ctx.n();
-        self.chunk_forward_from(isa, params, positions, shared, logits, c, from);
-    }
-
-    #[allow(clippy::too_many_arguments)]
-    fn chunk_forward_from(
-        &self,
-        isa: Isa,
-        params: &MixnetParams,
-        positions: &[Vec3],
-        shared: Option<&[f32]>,
-        logits: &mut [f32],
-        c: &mut MixnetChunk,
         from: usize,
+        positions: &[Vec3],
+        shared: Option<&[f32]>,
+        logits: &mut [f32],
+        c: &mut MixnetChunk,
     ) {
         let n = positions.len();
         assert_eq!(logits.len(), n, "mixnet: output length differs from the sample count");

@@ -329,45 +329,21 @@ impl NerfField {
         self.backward_with_feature_grad(isa, params, ctx, d_raw, d_rgb_raw, &[], grads, mode);
     }
 
-    /// Chunk forward, first half: encodes `positions` and runs the density network on this
-    /// thread; writes raw densities `s` into `raw`.
+    /// Chunk forward, first half, on this thread: `positions` become the chunk's rows `from..`
+    /// (rows before `from` are kept: a ray evaluated segment by segment grows its chunk;
+    /// `from = 0` starts a new one) — encoded and through the density network; their raw
+    /// densities `s` into `raw`. A chunk grown in steps holds the same bits as one call.
     pub fn chunk_density(
         &self,
         isa: Isa,
         params: &NerfParams,
-        positions: &[Vec3],
-        raw: &mut [f32],
-        c: &mut FieldChunk,
-    ) {
-        self.chunk_density_from(isa, params, positions, raw, c, 0);
-    }
-
-    /// [`NerfField::chunk_density`] of more samples, appended to the chunk as its next rows
-    /// (a ray evaluated segment by segment until it turns opaque): the same bits as one call
-    /// on all of them.
-    pub fn chunk_density_more(
-        &self,
-        isa: Isa,
-        params: &NerfParams,
-        positions: &[Vec3],
-        raw: &mut [f32],
-        c: &mut FieldChunk,
-    ) {
-        let from = c.len();
-        self.chunk_density_from(isa, params, positions, raw, c, from);
-    }
-
-    /// The chunk's rows `from..` become `positions`; their raw densities into `raw`.
-    fn chunk_density_from(
-        &self,
-        isa: Isa,
-        params: &NerfParams,
-        positions: &[Vec3],
-        raw: &mut [f32],
-        c: &mut FieldChunk,
         from: usize,
+        positions: &[Vec3],
+        raw: &mut [f32],
+        c: &mut FieldChunk,
     ) {
         assert_eq!(raw.len(), positions.len(), "field: output length differs from the sample count");
+        assert!(from == 0 || from == c.len(), "field: a chunk grows from its end");
         self.chunk_encode(isa, params, positions, c, from);
         self.nets_density(isa, params, &c.enc, from, raw, &mut c.nets);
     }

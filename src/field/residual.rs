@@ -3,7 +3,7 @@
 //! [`super::mix`]. Forward gives activated σ and colour (what compositing needs); backward
 //! takes dL/dσ and dL/dc and fills gradients of the residual and the Mixnet only.
 
-use super::mix::{mix_backward, mix_forward, MixInput, MixKind, MixOutput};
+use super::mix::{mix_backward_rows, mix_forward, MixInput, MixKind, MixOutput};
 use super::mixnet::{Mixnet, MixnetChunk, MixnetContext, MixnetEncoding, MixnetGrads, MixnetParams};
 use super::{FieldChunk, FieldContext, Nerf, NerfConfig, NerfField, NerfGrads, NerfParams, NetGrads};
 use crate::rng::Rng;
@@ -289,13 +289,8 @@ impl ResidualField {
     ) {
         let n = ctx.inputs.len();
         assert!(d_sigma.len() == n && d_rgb.len() == n, "residual: gradient buffers differ from the sample count");
-        ctx.d_raw.resize(n, 0.0);
-        ctx.d_rgb_raw.resize(n, [0.0; 3]);
-        ctx.d_logits.resize(n, 0.0);
-        for i in 0..n {
-            let g = mix_backward(self.kind, &ctx.inputs[i], &ctx.outputs[i], d_sigma[i], d_rgb[i]);
-            (ctx.d_raw[i], ctx.d_rgb_raw[i], ctx.d_logits[i]) = (g.s_res, g.c_res, g.m);
-        }
+        let (d_s, d_c, d_m) = (&mut ctx.d_raw, &mut ctx.d_rgb_raw, &mut ctx.d_logits);
+        mix_backward_rows(self.kind, &ctx.inputs, &ctx.outputs, d_sigma, d_rgb, d_s, d_c, d_m);
         if n == 0 {
             return;
         }
@@ -320,31 +315,19 @@ impl ResidualField {
         );
     }
 
-    /// The residual's features of the last forward when the Mixnet shares them.
-    /// Chunk forward, first half, on this thread: activated mixed σ at `positions` (background
-    /// and residual density networks, the Mixnet), saving for the rest of the chunk.
+    /// Chunk forward, first half, on this thread: `positions` become the chunk's rows `from..`
+    /// (rows before `from` kept; `from = 0` starts a new chunk), their activated mixed σ
+    /// (background and residual density networks, the Mixnet) into `sigma`, saving for the rest
+    /// of the chunk. A chunk grown in steps holds the same bits as one call.
     pub fn chunk_density(
         &self,
         isa: Isa,
         params: &ResidualParams,
+        from: usize,
         positions: &[Vec3],
         sigma: &mut [f32],
         c: &mut ResidualChunk,
     ) {
-        self.chunk_sigma(isa, params, positions, sigma, c, Some(0));
-    }
-
-    /// [`ResidualField::chunk_density`] of more samples, appended to the chunk as its next
-    /// rows: the same bits as one call on all of them.
-    pub fn chunk_density_more(
-        &self,
-        isa: Isa,
-        params: &ResidualParams,
-        positions: &[Vec3],
-        sigma: &mut [f32],
-        c: &mut ResidualChunk,
-    ) {
-        let from = c.s_bg.len();
         self.chunk_sigma(isa, params, positions, sigma, c, Some(from));
     }
 
@@ -383,13 +366,9 @@ impl ResidualField {
         }
         let (s_bg, s_res) = (&mut c.s_bg[from..], &mut c.s_res[from..]);
         match rows {
-            Some(0) => {
-                bg.field.chunk_density(isa, &bg.params, positions, s_bg, &mut c.bg);
-                self.residual.chunk_density(isa, &params.residual, positions, s_res, &mut c.res);
-            }
-            Some(_) => {
-                bg.field.chunk_density_more(isa, &bg.params, positions, s_bg, &mut c.bg);
-                self.residual.chunk_density_more(isa, &params.residual, positions, s_res, &mut c.res);
+            Some(from) => {
+                bg.field.chunk_density(isa, &bg.params, from, positions, s_bg, &mut c.bg);
+                self.residual.chunk_density(isa, &params.residual, from, positions, s_res, &mut c.res);
             }
             None => {
                 bg.field.chunk_density_only(isa, &bg.params, positions, s_bg, &mut c.bg);
@@ -400,8 +379,7 @@ impl ResidualField {
             let shared = (self.mixnet.grid().is_none()).then(|| c.res.features());
             let (mixnet, p, logits) = (&self.mixnet, &params.mixnet, &mut c.logits[from..]);
             match rows {
-                Some(0) => mixnet.chunk_forward(isa, p, positions, shared, logits, &mut c.mix),
-                Some(_) => mixnet.chunk_forward_more(isa, p, positions, shared, logits, &mut c.mix),
+                Some(from) => mixnet.chunk_forward(isa, p, from, positions, shared, logits, &mut c.mix),
                 None => mixnet.chunk_logits(isa, p, positions, shared, logits, &mut c.mix),
             }
         }
@@ -470,13 +448,7 @@ impl ResidualField {
     ) {
         let n = c.inputs.len();
         assert!(d_sigma.len() == n && d_rgb.len() == n, "residual: gradient buffers differ from the kept rows");
-        c.d_s_res.resize(n, 0.0);
-        c.d_c_res.resize(n, [0.0; 3]);
-        c.d_m.resize(n, 0.0);
-        for i in 0..n {
-            let d = mix_backward(self.kind, &c.inputs[i], &c.outputs[i], d_sigma[i], d_rgb[i]);
-            (c.d_s_res[i], c.d_c_res[i], c.d_m[i]) = (d.s_res, d.c_res, d.m);
-        }
+        mix_backward_rows(self.kind, &c.inputs, &c.outputs, d_sigma, d_rgb, &mut c.d_s_res, &mut c.d_c_res, &mut c.d_m);
         let mixnet = matches!(self.kind, MixKind::Mixnet(_));
         let shared = self.mixnet.grid().is_none();
         if mixnet {
@@ -489,6 +461,7 @@ impl ResidualField {
         }
     }
 
+    /// The residual's features of the last forward when the Mixnet shares them.
     fn shared_features<'c>(&self, res: &'c FieldContext) -> Option<&'c [f32]> {
         (self.mixnet.grid().is_none()).then(|| res.features())
     }

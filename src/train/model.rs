@@ -83,16 +83,15 @@ pub trait Model: Sync {
     type Slot: Default + Send;
     /// Empties `slot` for a new step.
     fn begin_slot(&self, slot: &mut Self::Slot);
-    /// Fused step, on this thread: activated density σ of a chunk's samples (encodings and
-    /// density networks), saving what the rest of the chunk needs.
-    fn chunk_density(&self, isa: Isa, p: &Self::Params, positions: &[Vec3], sigma: &mut [f32], c: &mut Self::Chunk);
-    /// [`Model::chunk_density`] of more samples, appended to the chunk as its next rows (a ray
-    /// evaluated segment by segment until it turns opaque): the same bits as one
-    /// [`Model::chunk_density`] of all the chunk's samples.
-    fn chunk_density_more(
+    /// Fused step, on this thread: `positions` become the chunk's rows `from..` (rows before
+    /// `from` kept: a ray evaluated segment by segment grows its chunk; `from = 0` starts a new
+    /// one) — their activated density σ (encodings and density networks) into `sigma`, saving
+    /// what the rest of the chunk needs. A chunk grown in steps holds the same bits as one call.
+    fn chunk_density(
         &self,
         isa: Isa,
         p: &Self::Params,
+        from: usize,
         positions: &[Vec3],
         sigma: &mut [f32],
         c: &mut Self::Chunk,
@@ -289,20 +288,19 @@ impl Model for NerfField {
         slot.grid.clear();
     }
 
-    fn chunk_density(&self, isa: Isa, p: &NerfParams, positions: &[Vec3], sigma: &mut [f32], c: &mut NerfChunk) {
-        c.sigma.clear();
-        c.raw.clear();
-        Model::chunk_density_more(self, isa, p, positions, sigma, c);
-    }
-
-    fn chunk_density_more(&self, isa: Isa, p: &NerfParams, positions: &[Vec3], sigma: &mut [f32], c: &mut NerfChunk) {
-        let from = c.sigma.len();
+    fn chunk_density(
+        &self,
+        isa: Isa,
+        p: &NerfParams,
+        from: usize,
+        positions: &[Vec3],
+        sigma: &mut [f32],
+        c: &mut NerfChunk,
+    ) {
+        c.sigma.truncate(from);
         c.raw.resize(from + positions.len(), 0.0);
         let raw = &mut c.raw[from..];
-        match from {
-            0 => NerfField::chunk_density(self, isa, p, positions, raw, &mut c.field),
-            _ => NerfField::chunk_density_more(self, isa, p, positions, raw, &mut c.field),
-        }
+        NerfField::chunk_density(self, isa, p, from, positions, raw, &mut c.field);
         for (s, &r) in sigma.iter_mut().zip(raw.iter()) {
             *s = Activation::TruncExp.forward(r);
         }
@@ -431,22 +429,12 @@ impl Model for ResidualField {
         &self,
         isa: Isa,
         p: &ResidualParams,
+        from: usize,
         positions: &[Vec3],
         sigma: &mut [f32],
         c: &mut ResidualChunk,
     ) {
-        ResidualField::chunk_density(self, isa, p, positions, sigma, c);
-    }
-
-    fn chunk_density_more(
-        &self,
-        isa: Isa,
-        p: &ResidualParams,
-        positions: &[Vec3],
-        sigma: &mut [f32],
-        c: &mut ResidualChunk,
-    ) {
-        ResidualField::chunk_density_more(self, isa, p, positions, sigma, c);
+        ResidualField::chunk_density(self, isa, p, from, positions, sigma, c);
     }
 
     fn chunk_density_only(

@@ -277,10 +277,7 @@ impl<C> Worker<C> {
                 }
                 self.sigma.resize(s0 + count, 0.0);
                 let (p, sigma) = (&self.positions[s0..], &mut self.sigma[s0..]);
-                match s0 {
-                    0 => x.model.chunk_density(x.isa, x.params, p, sigma, &mut self.chunk),
-                    _ => x.model.chunk_density_more(x.isa, x.params, p, sigma, &mut self.chunk),
-                }
+                x.model.chunk_density(x.isa, x.params, s0, p, sigma, &mut self.chunk);
                 for i in s0..s0 + count {
                     if acc.is_opaque() {
                         break;

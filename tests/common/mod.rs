@@ -133,3 +133,20 @@ pub fn trained_tabletop() -> residual_nerf::field::Nerf {
     cfg.occupancy = OccupancyConfig { resolution: 16, steps_per_diagonal: 128, warmup_steps: 16, ..Default::default() };
     train_nerf(residual_nerf::simd::Isa::detect(), &scene.views, field, &cfg, 0, |_| {}).expect("trains")
 }
+
+/// A random NeRF over the box [-1, 1]³ with a lively grid (every table entry uniform in
+/// [-1, 1], so densities and colours are far from constant) and a 4³ occupancy grid.
+pub fn lively_nerf(
+    grid: residual_nerf::encoding::HashGridConfig,
+    rng: &mut residual_nerf::rng::Rng,
+) -> residual_nerf::field::Nerf {
+    use residual_nerf::field::{Nerf, NerfConfig, NerfField};
+    use residual_nerf::render::{Aabb, OccupancyConfig, OccupancyGrid};
+    let aabb = Aabb { min: glam::Vec3::splat(-1.0), max: glam::Vec3::splat(1.0) };
+    let field = NerfField::new(NerfConfig { grid, aabb });
+    let mut params = field.init_params(rng);
+    params.grid.master.iter_mut().for_each(|v| *v = rng.uniform(-1.0, 1.0));
+    params.grid.sync_mirror();
+    let occupancy = OccupancyGrid::new(aabb, OccupancyConfig { resolution: 4, ..Default::default() });
+    Nerf { field, params, occupancy }
+}
