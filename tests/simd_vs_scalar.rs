@@ -1,7 +1,7 @@
 //! Every SIMD kernel equals its scalar twin, on every CPU level the host has, over sizes that
 //! include 0, 1, a prime and lane counts ± 1. Tolerances are stated per kernel.
 //!
-//! `RNERF_REQUIRE_LEVEL=avx2` (or `neon`) makes `required_level_is_tested` fail when that
+//! `RNERF_REQUIRE_LEVEL=avx2` (or `avx512`, `neon`) makes `required_level_is_tested` fail when that
 //! level was not among the levels tested — so a CI run cannot silently skip the SIMD path.
 
 mod common;
@@ -85,9 +85,10 @@ proptest! {
         }
     }
 
-    /// Layer kernels: |Δ| ≤ 1e-5 · (1 + Σ|x||w|) per output.
+    /// Layer kernels: |Δ| ≤ 1e-5 · (1 + Σ|x||w|) per output; the x86 levels (AVX2, AVX-512:
+    /// the same FMA chain per output, tiled differently) agree bit for bit.
     #[test]
-    fn matmul_kernels_match_scalar(k in prop::sample::select(vec![16usize, 32, 48, 64]), o in prop::sample::select(vec![16usize, 32, 64]), relu in any::<bool>(), seed in any::<u64>()) {
+    fn matmul_kernels_match_scalar(k in prop::sample::select(vec![16usize, 32, 48, 64]), o in prop::sample::select(vec![16usize, 32, 48, 64]), relu in any::<bool>(), seed in any::<u64>()) {
         let mut rng = Rng::new(seed);
         let w: Vec<f32> = (0..k * o).map(|_| rng.uniform(-1.0, 1.0)).collect();
         for &rows in SIZES {
@@ -97,6 +98,7 @@ proptest! {
             matmul_with(Isa::scalar(), &x, rows, k, &w, o, &mut want, relu);
             let mut want_dw: Vec<f32> = (0..k * o).map(|i| i as f32 * 0.01).collect();
             matmul_tn_acc_with(Isa::scalar(), &x, rows, k, &dz, o, &mut want_dw);
+            let mut x86: Option<(Isa, Vec<f32>, Vec<f32>)> = None;
             for isa in simd_levels() {
                 let mut got = vec![f32::NAN; rows * o];
                 matmul_with(isa, &x, rows, k, &w, o, &mut got, relu);
@@ -104,6 +106,14 @@ proptest! {
                 let mut got_dw: Vec<f32> = (0..k * o).map(|i| i as f32 * 0.01).collect();
                 matmul_tn_acc_with(isa, &x, rows, k, &dz, o, &mut got_dw);
                 assert_close(&got_dw, &want_dw, 1e-5 * (1.0 + rows as f32), 1e-6, &format!("{isa} matmul_tn_acc rows={rows} k={k} o={o}"));
+                if matches!(isa.level(), CpuLevel::Avx2 | CpuLevel::Avx512) {
+                    if let Some((first, y, dw)) = &x86 {
+                        let same = |a: &[f32], b: &[f32]| a.iter().zip(b).all(|(a, b)| a.to_bits() == b.to_bits());
+                        prop_assert!(same(&got, y) && same(&got_dw, dw), "{} and {} differ: rows={} k={} o={}", first, isa, rows, k, o);
+                    } else {
+                        x86 = Some((isa, got, got_dw));
+                    }
+                }
             }
             // The first-column kernel is column 0 of each level's own matmul, bit for bit.
             for isa in std::iter::once(Isa::scalar()).chain(simd_levels()) {
@@ -200,6 +210,16 @@ fn check_mlp<const W: usize>(mlp: Mlp<W>, seed: u64) {
             mlp.forward_first(isa, &params, &x, n, &mut MlpContext::default(), &mut first);
             let col0 = ctx.output().chunks(mlp.output_stride()).map(|r| r[0]);
             assert!(first.iter().zip(col0).all(|(a, b)| a.to_bits() == b.to_bits()), "{isa} W={W} forward_first n={n}");
+        }
+        // The x86 levels run the same FMA chains: the same outputs and gradients, bit for bit.
+        let x86: Vec<Isa> = simd_levels().into_iter().filter(|i| i.level() != CpuLevel::Neon).collect();
+        if let [a, b] = x86[..] {
+            let (ca, cb) = (forward(a), forward(b));
+            let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<u32>>();
+            assert_eq!(bits(ca.output()), bits(cb.output()), "{a}/{b} W={W} mlp output n={n}");
+            let ((ga, dxa), (gb, dxb)) = (backward(a, &ca), backward(b, &ca));
+            assert_eq!(bits(&ga), bits(&gb), "{a}/{b} W={W} mlp dW n={n}");
+            assert_eq!(bits(&dxa), bits(&dxb), "{a}/{b} W={W} mlp dx n={n}");
         }
         for isa in simd_levels() {
             let ctx = forward(isa);

@@ -9,6 +9,9 @@ pub fn fma_loop(isa: Isa, iters: u64, seed: f32) -> (f32, f64) {
         #[cfg(target_arch = "x86_64")]
         // SAFETY: an `Isa` of level Avx2 exists only when the CPU has AVX2 and FMA.
         CpuLevel::Avx2 => (unsafe { fma_avx2(iters, seed) }, iters as f64 * 12.0 * 8.0 * 2.0),
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: an `Isa` of level Avx512 exists only when the CPU has AVX-512F.
+        CpuLevel::Avx512 => (unsafe { fma_avx512(iters, seed) }, iters as f64 * 12.0 * 16.0 * 2.0),
         #[cfg(target_arch = "aarch64")]
         // SAFETY: an `Isa` of level Neon exists only when the CPU has NEON.
         CpuLevel::Neon => (unsafe { fma_neon(iters, seed) }, iters as f64 * 12.0 * 4.0 * 2.0),
@@ -47,6 +50,25 @@ unsafe fn fma_avx2(iters: u64, seed: f32) -> f32 {
     // SAFETY: `out` holds 8 floats.
     unsafe { _mm256_storeu_ps(out.as_mut_ptr(), s) };
     out.iter().sum()
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn fma_avx512(iters: u64, seed: f32) -> f32 {
+    use std::arch::x86_64::*;
+    let a = _mm512_set1_ps(0.999_999);
+    let b = _mm512_set1_ps(1e-9);
+    let mut r: [__m512; 12] = std::array::from_fn(|i| _mm512_set1_ps(seed + i as f32));
+    for _ in 0..iters {
+        for x in r.iter_mut() {
+            *x = _mm512_fmadd_ps(*x, a, b);
+        }
+    }
+    let mut s = _mm512_setzero_ps();
+    for x in r {
+        s = _mm512_add_ps(s, x);
+    }
+    _mm512_reduce_add_ps(s)
 }
 
 #[cfg(target_arch = "aarch64")]

@@ -17,11 +17,15 @@
 //! (`w[kk · o_l + j]`), layers in order.
 //!
 //! Per layer, `z = x·W`, `y = act(z)`; backward: `dz = dy ⊙ act′(y)`, `dW += xᵀ·dz`,
-//! `dx = dz·Wᵀ`. Kernels: [`scalar`] is the spec, `avx2`/`neon` its twins.
+//! `dx = dz·Wᵀ`. Kernels: [`scalar`] is the spec, `avx2`/`avx512`/`neon` its twins (the
+//! AVX-512 level runs `avx512`'s layer kernels and `avx2`'s first-column kernel; `avx2` and
+//! `avx512` give the same bits).
 
 pub mod activation;
 #[cfg(target_arch = "x86_64")]
 mod avx2;
+#[cfg(target_arch = "x86_64")]
+mod avx512;
 #[cfg(target_arch = "aarch64")]
 mod neon;
 pub mod scalar;
@@ -327,6 +331,8 @@ fn matmul(isa: Isa, x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: 
     match isa.level() {
         #[cfg(target_arch = "x86_64")]
         CpuLevel::Avx2 => avx2::matmul(isa, x, rows, k, w, o, out, relu),
+        #[cfg(target_arch = "x86_64")]
+        CpuLevel::Avx512 => avx512::matmul(isa, x, rows, k, w, o, out, relu),
         #[cfg(target_arch = "aarch64")]
         CpuLevel::Neon => neon::matmul(isa, x, rows, k, w, o, out, relu),
         _ => scalar::matmul(x, rows, k, w, o, out, relu),
@@ -336,7 +342,7 @@ fn matmul(isa: Isa, x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: 
 fn matmul_first(isa: Isa, x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: &mut [f32], relu: bool) {
     match isa.level() {
         #[cfg(target_arch = "x86_64")]
-        CpuLevel::Avx2 => avx2::matmul_first(isa, x, rows, k, w, o, out, relu),
+        CpuLevel::Avx2 | CpuLevel::Avx512 => avx2::matmul_first(isa, x, rows, k, w, o, out, relu),
         #[cfg(target_arch = "aarch64")]
         CpuLevel::Neon => neon::matmul_first(isa, x, rows, k, w, o, out, relu),
         _ => scalar::matmul_first(x, rows, k, w, o, out, relu),
@@ -367,6 +373,8 @@ fn matmul_tn_acc(isa: Isa, x: &[f32], rows: usize, k: usize, dz: &[f32], o: usiz
     match isa.level() {
         #[cfg(target_arch = "x86_64")]
         CpuLevel::Avx2 => avx2::matmul_tn_acc(isa, x, rows, k, dz, o, dw),
+        #[cfg(target_arch = "x86_64")]
+        CpuLevel::Avx512 => avx512::matmul_tn_acc(isa, x, rows, k, dz, o, dw),
         #[cfg(target_arch = "aarch64")]
         CpuLevel::Neon => neon::matmul_tn_acc(isa, x, rows, k, dz, o, dw),
         _ => scalar::matmul_tn_acc(x, rows, k, dz, o, dw),

@@ -176,7 +176,9 @@ impl HashGrid {
                 let out = &mut out[2 * l..];
                 match isa.level() {
                     #[cfg(target_arch = "x86_64")]
-                    CpuLevel::Avx2 => avx2::forward_level(isa, level, t, &soa, pos.len(), out, width),
+                    CpuLevel::Avx2 | CpuLevel::Avx512 => {
+                        avx2::forward_level(isa, level, t, &soa, pos.len(), out, width)
+                    }
                     #[cfg(target_arch = "aarch64")]
                     CpuLevel::Neon => neon::forward_level(isa, level, t, &soa, pos.len(), out, width),
                     _ => scalar::forward_level(level, t, &soa, pos.len(), out, width),
@@ -275,7 +277,9 @@ impl HashGrid {
                     let d = &d_out[c * CHUNK * stride..];
                     match isa.level() {
                         #[cfg(target_arch = "x86_64")]
-                        CpuLevel::Avx2 => avx2::backward_level(isa, level, g, &soa, pos.len(), d, stride),
+                        CpuLevel::Avx2 | CpuLevel::Avx512 => {
+                            avx2::backward_level(isa, level, g, &soa, pos.len(), d, stride)
+                        }
                         #[cfg(target_arch = "aarch64")]
                         CpuLevel::Neon => neon::backward_level(isa, level, g, &soa, pos.len(), d, stride),
                         _ => scalar::backward_level(level, g, &soa, pos.len(), d, stride),
