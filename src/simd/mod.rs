@@ -2,9 +2,9 @@
 //!
 //! Every hot kernel exists once per [`CpuLevel`]: a portable `_scalar` twin that is its
 //! specification, and hand-written SIMD for AVX2+FMA+F16C (x86_64) and NEON (aarch64). The
-//! AVX-512 level adds 512-bit MLP kernels (the FMA-bound part of training, ~2× the FMA
-//! throughput of AVX2 where the core has two 512-bit FMA units); every other kernel runs its
-//! AVX2 version there, which the level includes ([`CpuLevel::includes`]).
+//! AVX-512 level adds 512-bit MLP layer kernels (the FMA-bound part of training, ~2× the FMA
+//! throughput of AVX2 where the core has two 512-bit FMA units) and a 16-lane hash-grid
+//! forward; every other kernel runs its AVX2 version there, which the level includes ([`CpuLevel::includes`]).
 //! The level is **detected once at run time** — never chosen only at compile time — so a
 //! robot build for a generic target still runs the vector code its CPU has.
 //!
@@ -38,7 +38,8 @@ pub enum CpuLevel {
     /// x86_64 with AVX2, FMA and F16C (Haswell / Zen 1 and later).
     Avx2,
     /// x86_64 with AVX-512F on top of the AVX2 level (Skylake-SP, Ice Lake, Sapphire Rapids,
-    /// Zen 4 and later): 512-bit MLP kernels, the AVX2 kernels elsewhere.
+    /// Zen 4 and later): 512-bit MLP layer kernels and hash-grid forward, the AVX2 kernels
+    /// elsewhere; the same bits as `Avx2`.
     Avx512,
     /// aarch64 Advanced SIMD (NEON; part of every ARMv8-A core).
     Neon,

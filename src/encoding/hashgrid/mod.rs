@@ -22,8 +22,9 @@
 //! level owns a disjoint slice of the gradient, so it needs no atomics and sums in sample order
 //! whatever the thread count.
 //!
-//! Kernels: [`scalar`] is the specification; `avx2` and `neon` compute the same values
-//! (FMA may change the last bits) and are compared against it in `tests/simd_vs_scalar.rs`.
+//! Kernels: [`scalar`] is the specification; `avx2`, `avx512` (the forward, 16 lanes; the
+//! same bits as `avx2`) and `neon` compute the same values (FMA may change the last bits) and
+//! are compared against it in `tests/simd_vs_scalar.rs`.
 
 use crate::rng::Rng;
 use crate::simd::{CpuLevel, Isa};
@@ -32,6 +33,8 @@ use rayon::prelude::*;
 
 #[cfg(target_arch = "x86_64")]
 mod avx2;
+#[cfg(target_arch = "x86_64")]
+mod avx512;
 #[cfg(target_arch = "aarch64")]
 mod neon;
 pub mod scalar;
@@ -176,9 +179,9 @@ impl HashGrid {
                 let out = &mut out[2 * l..];
                 match isa.level() {
                     #[cfg(target_arch = "x86_64")]
-                    CpuLevel::Avx2 | CpuLevel::Avx512 => {
-                        avx2::forward_level(isa, level, t, &soa, pos.len(), out, width)
-                    }
+                    CpuLevel::Avx2 => avx2::forward_level(isa, level, t, &soa, pos.len(), out, width),
+                    #[cfg(target_arch = "x86_64")]
+                    CpuLevel::Avx512 => avx512::forward_level(isa, level, t, &soa, pos.len(), out, width),
                     #[cfg(target_arch = "aarch64")]
                     CpuLevel::Neon => neon::forward_level(isa, level, t, &soa, pos.len(), out, width),
                     _ => scalar::forward_level(level, t, &soa, pos.len(), out, width),
