@@ -111,8 +111,9 @@ unsafe fn forward_level_unchecked(
 }
 
 /// AVX2 twin of [`super::scalar::backward_level`]: indices and weights 8 samples at a time,
-/// then the scatter-add in the scalar kernel's order (sample, then corner), so the result is
-/// bit-identical to it.
+/// then the scatter-add in the scalar kernel's order (sample, then corner), each corner's two
+/// features read, multiplied, added and written as one 64-bit pair (the same per-feature
+/// operations), so the result is bit-identical to it.
 ///
 /// # Safety
 /// The CPU must support AVX2, FMA and F16C; `grads` is the level's slice.
@@ -125,6 +126,8 @@ unsafe fn backward_level_unchecked(
     d: &[f32],
     stride: usize,
 ) {
+    assert!(grads.len() >= 2 * level.size, "hash grid: level gradient too short");
+    let gp = grads.as_mut_ptr();
     let mut idx = [[0u32; 8]; 8];
     let mut w = [[0f32; 8]; 8];
     let mut i = 0;
@@ -138,11 +141,16 @@ unsafe fn backward_level_unchecked(
             }
         }
         for s in 0..(n - i).min(8) {
-            let (g0, g1) = (d[(i + s) * stride], d[(i + s) * stride + 1]);
+            let g = _mm_setr_ps(d[(i + s) * stride], d[(i + s) * stride + 1], 0.0, 0.0);
             for c in 0..8 {
-                let e = 2 * idx[c][s] as usize;
-                grads[e] += w[c][s] * g0;
-                grads[e + 1] += w[c][s] * g1;
+                // SAFETY: idx < level.size (see corners8), so floats e and e + 1 are inside
+                // `grads` (asserted to hold 2 · level.size); 8-byte loads and stores of them.
+                unsafe {
+                    let p = gp.add(2 * idx[c][s] as usize) as *mut f64;
+                    let cur = _mm_castpd_ps(_mm_load_sd(p));
+                    let sum = _mm_add_ps(cur, _mm_mul_ps(_mm_set1_ps(w[c][s]), g));
+                    _mm_store_sd(p, _mm_castps_pd(sum));
+                }
             }
         }
         i += 8;

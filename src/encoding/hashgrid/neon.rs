@@ -108,7 +108,8 @@ unsafe fn forward_level_unchecked(
     }
 }
 
-/// NEON twin of [`super::scalar::backward_level`] (same scatter order, bit-identical).
+/// NEON twin of [`super::scalar::backward_level`] (same scatter order, each corner's two features
+/// as one 2-float pair with the same per-feature operations: bit-identical).
 ///
 /// # Safety
 /// The CPU must support NEON; `grads` is the level's slice.
@@ -121,6 +122,8 @@ unsafe fn backward_level_unchecked(
     d: &[f32],
     stride: usize,
 ) {
+    assert!(grads.len() >= 2 * level.size, "hash grid: level gradient too short");
+    let gp = grads.as_mut_ptr();
     let mut idx = [[0u32; 4]; 8];
     let mut w = [[0f32; 4]; 8];
     let mut i = 0;
@@ -134,11 +137,16 @@ unsafe fn backward_level_unchecked(
             }
         }
         for s in 0..(n - i).min(4) {
-            let (g0, g1) = (d[(i + s) * stride], d[(i + s) * stride + 1]);
+            let pair = [d[(i + s) * stride], d[(i + s) * stride + 1]];
+            // SAFETY: `pair` holds 2 floats.
+            let g = unsafe { vld1_f32(pair.as_ptr()) };
             for c in 0..8 {
-                let e = 2 * idx[c][s] as usize;
-                grads[e] += w[c][s] * g0;
-                grads[e + 1] += w[c][s] * g1;
+                // SAFETY: idx < level.size (see corners4), so floats e and e + 1 are inside
+                // `grads` (asserted to hold 2 · level.size); a 2-float load and store of them.
+                unsafe {
+                    let p = gp.add(2 * idx[c][s] as usize);
+                    vst1_f32(p, vadd_f32(vld1_f32(p), vmul_n_f32(g, w[c][s])));
+                }
             }
         }
         i += 4;
