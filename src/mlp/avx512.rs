@@ -46,8 +46,20 @@ unsafe fn tile_fwd<const RR: usize, const CC: usize>(
     }
 }
 
+/// The rows (or weight rows) the next tile takes when `left` remain: a full tile of `full`,
+/// else the widest of 4, 2 and 1 that fits (a 1-row tile has only `CC` FMA chains).
+#[inline(always)]
+fn tile_step(left: usize, full: usize) -> usize {
+    match left {
+        l if l >= full => full,
+        4.. => 4,
+        2..=3 => 2,
+        _ => 1,
+    }
+}
+
 /// All rows of `x · w` in tiles of `R` rows × `CC` column vectors, the remainder rows in
-/// tiles of 4, 2 and 1. `o` must be a multiple of `16·CC`.
+/// tiles of 4, 2 and 1 ([`tile_step`]). `o` must be a multiple of `16·CC`.
 ///
 /// # Safety
 /// AVX-512F; `x`, `w` and `out` hold `rows × k`, `k × o` and `rows × o` values.
@@ -63,12 +75,7 @@ unsafe fn matmul_tiles<const R: usize, const CC: usize>(
 ) {
     let mut b = 0;
     while b < rows {
-        let step = match rows - b {
-            left if left >= R => R,
-            4.. => 4,
-            2..=3 => 2,
-            _ => 1,
-        };
+        let step = tile_step(rows - b, R);
         for j in (0..o).step_by(16 * CC) {
             // SAFETY: b + step <= rows, j + 16·CC <= o; the caller bounds x, w and out.
             unsafe {
@@ -159,12 +166,7 @@ unsafe fn tn_tiles<const KK: usize, const CC: usize>(
     for j in (0..o).step_by(16 * CC) {
         let mut kk = 0;
         while kk < k {
-            let step = match k - kk {
-                left if left >= KK => KK,
-                4.. => 4,
-                2..=3 => 2,
-                _ => 1,
-            };
+            let step = tile_step(k - kk, KK);
             // SAFETY: kk + step <= k, j + 16·CC <= o; the caller bounds x, dz and dw.
             unsafe {
                 match step {

@@ -19,9 +19,8 @@ macro_rules! safe_entry {
                 concat!(stringify!($name), ": called with the wrong CPU level")
             );
             // SAFETY: an `Isa` of a level that includes this one exists only when the CPU has
-            // the level's features
-            // (`Isa` is constructed only after run-time detection), which is what the
-            // `#[target_feature]` kernel requires.
+            // this level's features (`Isa` is constructed only after run-time detection),
+            // which is what the `#[target_feature]` kernel requires.
             unsafe { $unchecked($($arg),*) }
         }
     };

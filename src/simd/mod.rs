@@ -4,7 +4,8 @@
 //! specification, and hand-written SIMD for AVX2+FMA+F16C (x86_64) and NEON (aarch64). The
 //! AVX-512 level adds 512-bit MLP layer kernels (the FMA-bound part of training, ~2× the FMA
 //! throughput of AVX2 where the core has two 512-bit FMA units) and a 16-lane hash-grid
-//! forward; every other kernel runs its AVX2 version there, which the level includes ([`CpuLevel::includes`]).
+//! forward; every other kernel runs its AVX2 version there, which the level includes
+//! ([`CpuLevel::includes`]).
 //! The level is **detected once at run time** — never chosen only at compile time — so a
 //! robot build for a generic target still runs the vector code its CPU has.
 //!
@@ -12,9 +13,9 @@
 //! are [`Isa::scalar`], [`Isa::detect`], [`Isa::new`] and [`Isa::all`], which check the CPU.
 //! Kernels therefore take an `Isa` and may call `#[target_feature]` code without re-checking.
 //!
-//! The environment variable `RNERF_CPU_LEVEL` (`scalar`, `avx2`, `avx512`, `neon`) may **lower** the
-//! level (for testing and for bisecting a numeric difference); a value above what the host
-//! has is ignored with a warning, never obeyed.
+//! The environment variable `RNERF_CPU_LEVEL` (`scalar`, `avx2`, `avx512`, `neon`) may
+//! **lower** the level (for testing and for bisecting a numeric difference); a value above
+//! what the host has is ignored with a warning, never obeyed.
 
 pub(crate) mod entry;
 pub mod fpmode;
