@@ -261,11 +261,11 @@ impl MlpBench {
         }
     }
 
-    /// FLOPs (2 per multiply-add, padded widths as executed) of one `run`: forward, dL/dinput
-    /// and dL/dweights of both networks.
+    /// FLOPs (2 per multiply-add, as executed: [`Mlp::fwd_bwd_macs_per_sample`]) of one
+    /// `run`: forward, dL/dinput and dL/dweights of both networks.
     fn flops(&self) -> f64 {
-        let macs = self.nets.0.macs_per_sample().0 + self.nets.1.macs_per_sample().0;
-        (2 * 3 * macs * Self::BATCH) as f64
+        let macs = self.nets.0.fwd_bwd_macs_per_sample() + self.nets.1.fwd_bwd_macs_per_sample();
+        (2 * macs * Self::BATCH) as f64
     }
 
     fn run(&mut self, isa: Isa) {
@@ -476,10 +476,11 @@ pub fn run(opts: &BenchOptions, trained: Vec<TrainedView>) -> BenchReport {
     let residual = train_residual(isa, nerf.clone(), &glass.views, config, &residual_cfg, 1, |s| log.push(s))
         .expect("the bench scene trains");
     let (samples, rays) = rates(&log);
-    // The Mixnet's network against the NeRF's two, in padded multiply-adds per sample.
+    // The Mixnet's network against the NeRF's two, in executed forward + backward
+    // multiply-adds per sample.
     let nets = nerf_mlps();
-    let mixnet_flops = residual.field.mixnet().mlp().macs_per_sample().0 as f64
-        / (nets.0.macs_per_sample().0 + nets.1.macs_per_sample().0) as f64;
+    let mixnet_flops = residual.field.mixnet().mlp().fwd_bwd_macs_per_sample() as f64
+        / (nets.0.fwd_bwd_macs_per_sample() + nets.1.fwd_bwd_macs_per_sample()) as f64;
     push("train_residual_samples_per_s", "samples/s", samples);
     push("train_residual_rays_per_s", "rays/s", rays);
     let k = Intrinsics::from_fov_x(200, 200, 50f32.to_radians());

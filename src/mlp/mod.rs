@@ -11,7 +11,9 @@
 //! **Padding.** Input and output widths are padded to multiples of 16 (the SIMD tile);
 //! callers lay rows out with [`Mlp::input_stride`] / [`Mlp::output_stride`]. Padded weights
 //! start at zero and their gradients are forced to zero, so they stay zero under Adam and
-//! whatever the caller leaves in padding columns never reaches the result.
+//! whatever the caller leaves in padding columns never reaches the result. The output
+//! layer's backward runs on its real columns only, rounded up to 4 (a 3-output colour network
+//! or a 1-output Mixnet pads to 16): the same sums, see `narrow_output_backward`.
 //!
 //! **Weights.** One flat `f32` buffer; layer `l` is a `k_l × o_l` row-major view
 //! (`w[kk · o_l + j]`), layers in order.
@@ -134,6 +136,21 @@ impl<const W: usize> Mlp<W> {
         let padded = self.layers.iter().map(|l| l.k * l.o).sum();
         let real = self.layers.iter().map(|l| l.k_real * l.o_real).sum();
         (padded, real)
+    }
+
+    /// Multiply-adds per sample that one [`Mlp::forward`] and one [`Mlp::backward`] with
+    /// weight and input gradients execute: the padded forward, and per layer `xᵀ·dz` and
+    /// `dz·Wᵀ` at padded widths, except the output layer's two, which run on its real columns
+    /// rounded up to 4.
+    pub fn fwd_bwd_macs_per_sample(&self) -> usize {
+        let last = self.layers.len() - 1;
+        let backward: usize = self
+            .layers
+            .iter()
+            .enumerate()
+            .map(|(l, s)| 2 * s.k * if l == last { s.o_real.next_multiple_of(4).min(s.o) } else { s.o })
+            .sum();
+        self.macs_per_sample().0 + backward
     }
 
     /// Xavier-uniform initialisation (`U(±√(6/(fan_in+fan_out)))` on the real weights),
@@ -280,6 +297,9 @@ impl<const W: usize> Mlp<W> {
         ws.reserve(&self.layers);
         let last = self.layers.len() - 1;
         let out = self.layers[last];
+        // The output layer's dz is zero past its real columns: its backward reads only the
+        // first `narrow` of them (see `narrow_output_backward`).
+        let narrow = out.o_real.next_multiple_of(4);
         for t0 in (0..n).step_by(TILE) {
             let rows = TILE.min(n - t0);
             // dz of the output layer: dy ⊙ act′(y), padding columns zeroed.
@@ -296,6 +316,12 @@ impl<const W: usize> Mlp<W> {
                 } else {
                     &ctx.acts[l - 1][t0 * s.k..(t0 + rows) * s.k]
                 };
+                if l == last && narrow < s.o {
+                    let g = want_params.then(|| &mut grads[s.offset..s.offset + s.k * s.o]);
+                    narrow_output_backward(isa, params, s, narrow, x, rows, g, ws);
+                    self.config.hidden_activation.backward_slice(x, &ws.dx[..rows * s.k], &mut ws.dz[..rows * s.k]);
+                    continue;
+                }
                 if want_params {
                     matmul_tn_acc(
                         isa,
@@ -325,6 +351,49 @@ impl<const W: usize> Mlp<W> {
             grads[first.offset + first.k_real * first.o..first.offset + first.k * first.o].fill(0.0);
         }
     }
+}
+
+/// Backward of an output layer whose `dz` (`ws.dz`, `rows × o`) is zero past column `c` (its
+/// real width rounded up to 4, as the kernels want): a 3-output colour network or a 1-output
+/// Mixnet would otherwise spend 13/16 of three layer products on zero columns.
+/// - Weight gradient: `dW[:, ..c] += xᵀ·dz[:, ..c]` is run as its transpose,
+///   `dWᵀ[..c] += dz[:, ..c]ᵀ·x` — `c` weight rows of the `16·k`-wide kernel instead of one
+///   16-column block whose kernel broadcasts an input per multiply-add. `dWᵀ[..c]` is copied
+///   out of `grads` and back, so each entry runs the same chain of products (which commute)
+///   from the same start: the same bits on every level.
+/// - `ws.dx = dz[:, ..c]·Wᵀ[..c]`: the full product's sums without its trailing `+ 0·0` terms,
+///   which cannot change a sum that starts at +0 (it is never −0): the same bits.
+#[allow(clippy::too_many_arguments)]
+fn narrow_output_backward(
+    isa: Isa,
+    params: &MlpParams,
+    s: LayerShape,
+    c: usize,
+    x: &[f32],
+    rows: usize,
+    grads: Option<&mut [f32]>,
+    ws: &mut MlpWorkspace,
+) {
+    let dz = &mut ws.narrow_dz[..rows * c];
+    for (row, full) in dz.chunks_exact_mut(c).zip(ws.dz.chunks_exact(s.o)) {
+        row.copy_from_slice(&full[..c]);
+    }
+    if let Some(g) = grads {
+        let dwt = &mut ws.narrow_dwt[..c * s.k];
+        for j in 0..c {
+            for kk in 0..s.k {
+                dwt[j * s.k + kk] = g[kk * s.o + j];
+            }
+        }
+        matmul_tn_acc(isa, dz, rows, c, x, s.k, dwt);
+        for j in 0..c {
+            for kk in 0..s.k {
+                g[kk * s.o + j] = dwt[j * s.k + kk];
+            }
+        }
+    }
+    let wt = &params.transposed[s.offset..s.offset + c * s.k];
+    matmul(isa, dz, rows, c, wt, s.k, &mut ws.dx[..rows * s.k], false);
 }
 
 fn matmul(isa: Isa, x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: &mut [f32], relu: bool) {
@@ -461,11 +530,20 @@ pub fn keep_rows<T: Copy>(buf: &mut [T], width: usize, keep: &[u32]) {
 pub struct MlpWorkspace {
     dz: Vec<f32>,
     dx: Vec<f32>,
+    /// The output layer's real dz columns (`TILE × c`, see `narrow_output_backward`).
+    narrow_dz: Vec<f32>,
+    /// Its weight gradient, transposed (`c × k`).
+    narrow_dwt: Vec<f32>,
 }
 
 impl Default for MlpWorkspace {
     fn default() -> Self {
-        MlpWorkspace { dz: vec![0.0; TILE * 64], dx: vec![0.0; TILE * 64] }
+        MlpWorkspace {
+            dz: vec![0.0; TILE * 64],
+            dx: vec![0.0; TILE * 64],
+            narrow_dz: vec![0.0; TILE * 16],
+            narrow_dwt: vec![0.0; 16 * 64],
+        }
     }
 }
 
@@ -476,6 +554,11 @@ impl MlpWorkspace {
             // dynamic allocation: only for a network wider than any before
             self.dz.resize(TILE * widest, 0.0);
             self.dx.resize(TILE * widest, 0.0);
+        }
+        let out = layers.last().map_or(0, |l| l.o);
+        if self.narrow_dz.len() < TILE * out || self.narrow_dwt.len() < out * widest {
+            self.narrow_dz.resize(TILE * out, 0.0);
+            self.narrow_dwt.resize(out * widest, 0.0);
         }
     }
 }
@@ -558,5 +641,52 @@ mod tests {
             None,
             &mut MlpWorkspace::default(),
         );
+    }
+
+    /// The narrow output-layer backward against the full-width kernels it replaces, on every
+    /// level the host runs: the same weight gradients (accumulated onto non-zero ones) and the
+    /// same dL/dx, bit for bit, for 1..=16 real outputs.
+    #[test]
+    fn narrow_output_backward_is_the_full_width_product() {
+        let mut rng = Rng::new(7);
+        for o_real in [1usize, 3, 4, 5, 12, 16] {
+            let mlp = Mlp::<64>::new(MlpConfig {
+                input: 31,
+                output: o_real,
+                hidden_layers: 2,
+                hidden_activation: Activation::Relu,
+                output_activation: Activation::None,
+            });
+            let s = *mlp.layers().last().unwrap();
+            let c = o_real.next_multiple_of(4);
+            let params = mlp.init_params(&mut rng);
+            let rows = 37;
+            // ReLU outputs: some exact zeros.
+            let x: Vec<f32> = (0..rows * s.k).map(|_| rng.uniform(-1.0, 1.0).max(0.0)).collect();
+            let mut dz = vec![0.0f32; rows * s.o];
+            for row in dz.chunks_exact_mut(s.o) {
+                row[..o_real].iter_mut().for_each(|v| *v = rng.uniform(-1.0, 1.0));
+            }
+            let g0: Vec<f32> = (0..s.k * s.o).map(|_| rng.uniform(-1.0, 1.0)).collect();
+            for isa in Isa::all() {
+                let mut g_full = g0.clone();
+                matmul_tn_acc(isa, &x, rows, s.k, &dz, s.o, &mut g_full);
+                let mut dx_full = vec![0.0f32; rows * s.k];
+                let wt = &params.transposed[s.offset..s.offset + s.k * s.o];
+                matmul(isa, &dz, rows, s.o, wt, s.k, &mut dx_full, false);
+
+                let mut ws = MlpWorkspace::default();
+                ws.reserve(mlp.layers());
+                ws.dz[..rows * s.o].copy_from_slice(&dz);
+                let mut g = g0.clone();
+                let mut all = vec![0.0f32; mlp.n_params()];
+                all[s.offset..].copy_from_slice(&g);
+                narrow_output_backward(isa, &params, s, c, &x, rows, Some(&mut all[s.offset..]), &mut ws);
+                g.copy_from_slice(&all[s.offset..]);
+                let bits = |v: &[f32]| v.iter().map(|f| f.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&g), bits(&g_full), "{isa}: weight gradient, {o_real} outputs");
+                assert_eq!(bits(&ws.dx[..rows * s.k]), bits(&dx_full), "{isa}: dL/dx, {o_real} outputs");
+            }
+        }
     }
 }
