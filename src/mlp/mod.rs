@@ -357,8 +357,8 @@ impl<const W: usize> Mlp<W> {
 /// real width rounded up to 4, as the kernels want): a 3-output colour network or a 1-output
 /// Mixnet would otherwise spend 13/16 of three layer products on zero columns.
 /// - Weight gradient: `dW[:, ..c] += xᵀ·dz[:, ..c]` is run as its transpose,
-///   `dWᵀ[..c] += dz[:, ..c]ᵀ·x` — `c` weight rows of the `16·k`-wide kernel instead of one
-///   16-column block whose kernel broadcasts an input per multiply-add. `dWᵀ[..c]` is copied
+///   `dWᵀ[..c] += dz[:, ..c]ᵀ·x` — `c` rows of a `k`-wide weight-gradient product instead of
+///   one 16-column block whose kernel broadcasts an input per multiply-add. `dWᵀ[..c]` is copied
 ///   out of `grads` and back, so each entry runs the same chain of products (which commute)
 ///   from the same start: the same bits on every level.
 /// - `ws.dx = dz[:, ..c]·Wᵀ[..c]`: the full product's sums without its trailing `+ 0·0` terms,
