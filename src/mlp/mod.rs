@@ -148,9 +148,16 @@ impl<const W: usize> Mlp<W> {
             .layers
             .iter()
             .enumerate()
-            .map(|(l, s)| 2 * s.k * if l == last { s.o_real.next_multiple_of(4).min(s.o) } else { s.o })
+            .map(|(l, s)| 2 * s.k * if l == last { self.output_backward_columns() } else { s.o })
             .sum();
         self.macs_per_sample().0 + backward
+    }
+
+    /// Columns of `dz` the output layer's backward reads: its real width rounded up to 4 (the
+    /// kernels' step), at most its padded width (see `narrow_output_backward`).
+    fn output_backward_columns(&self) -> usize {
+        let out = self.layers.last().unwrap();
+        out.o_real.next_multiple_of(4).min(out.o)
     }
 
     /// Xavier-uniform initialisation (`U(±√(6/(fan_in+fan_out)))` on the real weights),
@@ -299,7 +306,7 @@ impl<const W: usize> Mlp<W> {
         let out = self.layers[last];
         // The output layer's dz is zero past its real columns: its backward reads only the
         // first `narrow` of them (see `narrow_output_backward`).
-        let narrow = out.o_real.next_multiple_of(4);
+        let narrow = self.output_backward_columns();
         for t0 in (0..n).step_by(TILE) {
             let rows = TILE.min(n - t0);
             // dz of the output layer: dy ⊙ act′(y), padding columns zeroed.
