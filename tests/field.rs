@@ -96,7 +96,12 @@ proptest! {
                 a[i] as f64 * s + (0..3).map(|k| b[i][k] as f64 * col[k]).sum::<f64>()
             }).sum()
         };
-        for isa in Isa::all() {
+        // The fp32 levels. At the AMX level (bf16 operands) some unit of these 64-wide networks
+        // always lies within bf16 rounding of its ReLU kink (no case of 100 had every unit
+        // 5e-2 clear), so finite differences of the f64 field cannot check it; its networks
+        // are checked against the scalar spec in simd_vs_scalar and by finite differences in
+        // gradients.rs, its training end to end.
+        for isa in Isa::all().into_iter().filter(|i| i.level().mlp_is_fp32()) {
             let mut ctx = FieldContext::default();
             let (mut raw, mut rgb) = (vec![0.0; pos.len()], vec![[0.0; 3]; pos.len()]);
             field.forward(isa, &p, &pos, &dir, &mut raw, &mut rgb, &mut ctx);

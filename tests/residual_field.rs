@@ -12,7 +12,6 @@ use residual_nerf::field::residual::{ResidualConfig, ResidualContext, ResidualFi
 use residual_nerf::field::{Nerf, NerfConfig};
 use residual_nerf::render::Aabb;
 use residual_nerf::rng::Rng;
-use residual_nerf::simd::Isa;
 use residual_nerf::GradientMode;
 
 fn grid() -> HashGridConfig {
@@ -32,7 +31,7 @@ fn background(rng: &mut Rng) -> Nerf {
 fn loss(f: &ResidualField, p: &ResidualParams, pos: &[Vec3], dirs: &[Vec3], a: &[f32], b: &[[f32; 3]]) -> f64 {
     let n = pos.len();
     let (mut sigma, mut rgb) = (vec![0.0; n], vec![[0.0; 3]; n]);
-    f.forward(Isa::detect(), p, pos, dirs, &mut sigma, &mut rgb, &mut ResidualContext::default());
+    f.forward(common::best_fp32_isa(), p, pos, dirs, &mut sigma, &mut rgb, &mut ResidualContext::default());
     (0..n).map(|i| a[i] as f64 * sigma[i] as f64 + (0..3).map(|k| (b[i][k] * rgb[i][k]) as f64).sum::<f64>()).sum()
 }
 
@@ -46,7 +45,8 @@ fn top(g: &[f32], k: usize) -> Vec<usize> {
 
 #[test]
 fn residual_gradients_match_finite_differences() {
-    let isa = Isa::detect();
+    // Finite differences through the field's own forward: an fp32 level (see best_fp32_isa).
+    let isa = common::best_fp32_isa();
     let own =
         MixnetEncoding::Own(HashGridConfig { levels: 2, log2_table_size: 6, base_resolution: 4, finest_resolution: 8 });
     for (kind, mixnet) in [

@@ -1,5 +1,6 @@
 //! Machine limits measured in the same run as the kernels: an fp32 FMA loop with 12
-//! independent accumulators (the peak the MLP is compared to) per CPU level.
+//! independent accumulators (the peak the MLP is compared to) per CPU level, and at the AMX
+//! level the tile unit's bf16 product loop.
 
 use crate::simd::{CpuLevel, Isa};
 
@@ -10,12 +11,26 @@ pub fn fma_loop(isa: Isa, iters: u64, seed: f32) -> (f32, f64) {
         // SAFETY: an `Isa` of level Avx2 exists only when the CPU has AVX2 and FMA.
         CpuLevel::Avx2 => (unsafe { fma_avx2(iters, seed) }, iters as f64 * 12.0 * 8.0 * 2.0),
         #[cfg(target_arch = "x86_64")]
-        // SAFETY: an `Isa` of level Avx512 exists only when the CPU has AVX-512F.
-        CpuLevel::Avx512 => (unsafe { fma_avx512(iters, seed) }, iters as f64 * 12.0 * 16.0 * 2.0),
+        // SAFETY: an `Isa` of level Avx512 or Amx exists only when the CPU has AVX-512F.
+        CpuLevel::Avx512 | CpuLevel::Amx => (unsafe { fma_avx512(iters, seed) }, iters as f64 * 12.0 * 16.0 * 2.0),
         #[cfg(target_arch = "aarch64")]
         // SAFETY: an `Isa` of level Neon exists only when the CPU has NEON.
         CpuLevel::Neon => (unsafe { fma_neon(iters, seed) }, iters as f64 * 12.0 * 4.0 * 2.0),
         _ => (fma_scalar(iters, seed), iters as f64 * 12.0 * 2.0),
+    }
+}
+
+/// The AMX tile unit's bf16 peak, FLOPs done by `iters` rounds (`None` below the AMX level).
+pub fn tile_loop(isa: Isa, iters: u64) -> Option<f64> {
+    match isa.level() {
+        #[cfg(target_arch = "x86_64")]
+        CpuLevel::Amx => {
+            let mut sink = [0f32; 256];
+            crate::mlp::amx::tile_peak_loop(isa, iters, &mut sink);
+            std::hint::black_box(&sink);
+            Some(iters as f64 * crate::mlp::amx::TILE_PEAK_FLOPS_PER_ITER)
+        }
+        _ => None,
     }
 }
 

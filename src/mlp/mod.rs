@@ -25,6 +25,8 @@
 
 pub mod activation;
 #[cfg(target_arch = "x86_64")]
+pub(crate) mod amx;
+#[cfg(target_arch = "x86_64")]
 mod avx2;
 #[cfg(target_arch = "x86_64")]
 mod avx512;
@@ -78,6 +80,29 @@ pub struct Mlp<const W: usize> {
     config: MlpConfig,
     layers: Vec<LayerShape>,
     n_params: usize,
+}
+
+/// Rounds to bf16 (nearest even; NaN stays NaN), as `vcvtne2ps2bf16` does.
+pub fn bf16_bits(v: f32) -> u16 {
+    let b = v.to_bits();
+    if v.is_nan() {
+        return ((b >> 16) | 0x40) as u16;
+    }
+    (b.wrapping_add(0x7fff + ((b >> 16) & 1)) >> 16) as u16
+}
+
+/// Packs the `k × o` row-major matrix `w` for the tiles: bf16, `k` padded with zero rows to a
+/// multiple of 32, pairs of consecutive rows interleaved (`packed[(kk/2)·2o + 2j + kk%2] =
+/// w[kk][j]`), the layout `tdpbf16ps` reads its second operand in. Length `k.next_multiple_of(32) · o`.
+pub fn pack_vnni(w: &[f32], k: usize, o: usize, packed: &mut [u16]) {
+    let k32 = k.next_multiple_of(32);
+    assert!(w.len() >= k * o && packed.len() >= k32 * o, "pack_vnni: buffers too short");
+    packed[..k32 * o].fill(0);
+    for kk in 0..k {
+        for j in 0..o {
+            packed[(kk / 2) * 2 * o + 2 * j + kk % 2] = bf16_bits(w[kk * o + j]);
+        }
+    }
 }
 
 fn pad16(n: usize) -> usize {
@@ -193,10 +218,13 @@ impl<const W: usize> Mlp<W> {
         n: usize,
         ctx: &mut MlpContext,
     ) {
-        let params = params.weights();
-        assert_eq!(params.len(), self.n_params, "mlp: parameter buffer has the wrong length");
+        assert_eq!(params.weights.len(), self.n_params, "mlp: parameter buffer has the wrong length");
         assert!(input.len() >= n * self.input_stride(), "mlp: input holds fewer than n rows");
         assert!(from == 0 || (from <= n && from == ctx.n), "mlp: forward_from continues the last pass's rows");
+        assert!(
+            isa.level().mlp_is_fp32() || params.synced,
+            "mlp: weights changed since the last MlpParams::sync (stale bf16 copy)"
+        );
         ctx.prepare(n, self.layers.iter().map(|l| l.o));
         let last = self.layers.len() - 1;
         for t0 in (from..n).step_by(TILE) {
@@ -210,8 +238,7 @@ impl<const W: usize> Mlp<W> {
                     &before[l - 1][t0 * s.k..(t0 + rows) * s.k]
                 };
                 let y = &mut after[0][t0 * s.o..(t0 + rows) * s.o];
-                let w = &params[s.offset..s.offset + s.k * s.o];
-                matmul(isa, x, rows, s.k, w, s.o, y, act == Activation::Relu);
+                matmul(isa, x, rows, s.k, params.layer(l), s.o, y, act == Activation::Relu);
                 if !act.fused_in_kernel() {
                     y.iter_mut().for_each(|v| *v = act.forward(*v));
                 }
@@ -232,10 +259,17 @@ impl<const W: usize> Mlp<W> {
         ctx: &mut MlpContext,
         out: &mut [f32],
     ) {
+        assert!(out.len() >= n, "mlp: output holds fewer than n values");
+        if !isa.level().mlp_is_fp32() {
+            // The tile unit computes 16 columns as fast as one: the whole forward, column 0.
+            self.forward(isa, params, input, n, ctx);
+            let o = self.output_stride();
+            out[..n].iter_mut().zip(ctx.output().chunks_exact(o)).for_each(|(y, row)| *y = row[0]);
+            return;
+        }
         let params = params.weights();
         assert_eq!(params.len(), self.n_params, "mlp: parameter buffer has the wrong length");
         assert!(input.len() >= n * self.input_stride(), "mlp: input holds fewer than n rows");
-        assert!(out.len() >= n, "mlp: output holds fewer than n values");
         let last = self.layers.len() - 1;
         ctx.prepare(n, self.layers[..last].iter().map(|l| l.o));
         ctx.n = 0;
@@ -243,7 +277,7 @@ impl<const W: usize> Mlp<W> {
         for t0 in (0..n).step_by(TILE) {
             let rows = TILE.min(n - t0);
             for (l, s) in self.layers.iter().enumerate() {
-                let w = &params[s.offset..s.offset + s.k * s.o];
+                let w = LayerWeights { f32: &params[s.offset..s.offset + s.k * s.o], bf16: &[] };
                 let (before, after) = ctx.acts.split_at_mut(l);
                 let x = if l == 0 {
                     &input[t0 * s.k..(t0 + rows) * s.k]
@@ -252,7 +286,7 @@ impl<const W: usize> Mlp<W> {
                 };
                 if l == last {
                     let y = &mut out[t0..t0 + rows];
-                    matmul_first(isa, x, rows, s.k, w, s.o, y, act == Activation::Relu);
+                    matmul_first(isa, x, rows, s.k, w.f32, s.o, y, act == Activation::Relu);
                     if !act.fused_in_kernel() {
                         y.iter_mut().for_each(|v| *v = act.forward(*v));
                     }
@@ -325,7 +359,7 @@ impl<const W: usize> Mlp<W> {
                 };
                 if l == last && narrow < s.o {
                     let g = want_params.then(|| &mut grads[s.offset..s.offset + s.k * s.o]);
-                    narrow_output_backward(isa, params, s, narrow, x, rows, g, ws);
+                    narrow_output_backward(isa, params, l, narrow, x, rows, g, ws);
                     self.config.hidden_activation.backward_slice(x, &ws.dx[..rows * s.k], &mut ws.dz[..rows * s.k]);
                     continue;
                 }
@@ -342,11 +376,11 @@ impl<const W: usize> Mlp<W> {
                 }
                 if l > 0 {
                     // dx = dz · Wᵀ, then through the hidden activation.
-                    let wt = &params.transposed[s.offset..s.offset + s.k * s.o];
+                    let wt = params.layer_transposed(l);
                     matmul(isa, &ws.dz[..rows * s.o], rows, s.o, wt, s.k, &mut ws.dx[..rows * s.k], false);
                     self.config.hidden_activation.backward_slice(x, &ws.dx[..rows * s.k], &mut ws.dz[..rows * s.k]);
                 } else if let Some(d) = d_input.as_deref_mut() {
-                    let wt = &params.transposed[s.offset..s.offset + s.k * s.o];
+                    let wt = params.layer_transposed(l);
                     matmul(isa, &ws.dz[..rows * s.o], rows, s.o, wt, s.k, &mut d[t0 * s.k..(t0 + rows) * s.k], false);
                 }
             }
@@ -374,13 +408,14 @@ impl<const W: usize> Mlp<W> {
 fn narrow_output_backward(
     isa: Isa,
     params: &MlpParams,
-    s: LayerShape,
+    l: usize,
     c: usize,
     x: &[f32],
     rows: usize,
     grads: Option<&mut [f32]>,
     ws: &mut MlpWorkspace,
 ) {
+    let s = params.layers[l];
     let dz = &mut ws.narrow_dz[..rows * c];
     for (row, full) in dz.chunks_exact_mut(c).zip(ws.dz.chunks_exact(s.o)) {
         row.copy_from_slice(&full[..c]);
@@ -399,19 +434,32 @@ fn narrow_output_backward(
             }
         }
     }
-    let wt = &params.transposed[s.offset..s.offset + c * s.k];
+    // Wᵀ's first c rows: the f32 copy's prefix; the bf16 pack's pair-rows (of which the
+    // kernel reads c rounded up to 32, the rest zero-padded weights or zero padding).
+    let wt = params.layer_transposed(l);
+    let wt = LayerWeights { f32: &wt.f32[..c * s.k], bf16: wt.bf16 };
     matmul(isa, dz, rows, c, wt, s.k, &mut ws.dx[..rows * s.k], false);
 }
 
-fn matmul(isa: Isa, x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: &mut [f32], relu: bool) {
+/// One layer's weights as the kernels of each level take them: `f32` (`k × o` row-major) for
+/// the fp32 levels, `bf16` (the same, packed by [`pack_vnni`]) for the AMX level.
+#[derive(Clone, Copy)]
+struct LayerWeights<'a> {
+    f32: &'a [f32],
+    bf16: &'a [u16],
+}
+
+fn matmul(isa: Isa, x: &[f32], rows: usize, k: usize, w: LayerWeights, o: usize, out: &mut [f32], relu: bool) {
     match isa.level() {
         #[cfg(target_arch = "x86_64")]
-        CpuLevel::Avx2 => avx2::matmul(isa, x, rows, k, w, o, out, relu),
+        CpuLevel::Avx2 => avx2::matmul(isa, x, rows, k, w.f32, o, out, relu),
         #[cfg(target_arch = "x86_64")]
-        CpuLevel::Avx512 => avx512::matmul(isa, x, rows, k, w, o, out, relu),
+        CpuLevel::Avx512 => avx512::matmul(isa, x, rows, k, w.f32, o, out, relu),
+        #[cfg(target_arch = "x86_64")]
+        CpuLevel::Amx => amx::matmul(isa, x, rows, k, w.bf16, o, out, relu),
         #[cfg(target_arch = "aarch64")]
-        CpuLevel::Neon => neon::matmul(isa, x, rows, k, w, o, out, relu),
-        _ => scalar::matmul(x, rows, k, w, o, out, relu),
+        CpuLevel::Neon => neon::matmul(isa, x, rows, k, w.f32, o, out, relu),
+        _ => scalar::matmul(x, rows, k, w.f32, o, out, relu),
     }
 }
 
@@ -419,6 +467,16 @@ fn matmul_first(isa: Isa, x: &[f32], rows: usize, k: usize, w: &[f32], o: usize,
     match isa.level() {
         #[cfg(target_arch = "x86_64")]
         CpuLevel::Avx2 | CpuLevel::Avx512 => avx2::matmul_first(isa, x, rows, k, w, o, out, relu),
+        #[cfg(target_arch = "x86_64")]
+        CpuLevel::Amx => {
+            // Column 0 of the tile product (forward_first does not come here: it runs the
+            // whole forward at this level).
+            let mut packed = vec![0; k.next_multiple_of(32) * o];
+            pack_vnni(w, k, o, &mut packed);
+            let mut full = vec![0.0; rows * o];
+            amx::matmul(isa, x, rows, k, &packed, o, &mut full, relu);
+            out[..rows].iter_mut().zip(full.chunks_exact(o)).for_each(|(y, r)| *y = r[0]);
+        }
         #[cfg(target_arch = "aarch64")]
         CpuLevel::Neon => neon::matmul_first(isa, x, rows, k, w, o, out, relu),
         _ => scalar::matmul_first(x, rows, k, w, o, out, relu),
@@ -450,7 +508,7 @@ fn matmul_tn_acc(isa: Isa, x: &[f32], rows: usize, k: usize, dz: &[f32], o: usiz
         #[cfg(target_arch = "x86_64")]
         CpuLevel::Avx2 => avx2::matmul_tn_acc(isa, x, rows, k, dz, o, dw),
         #[cfg(target_arch = "x86_64")]
-        CpuLevel::Avx512 => avx512::matmul_tn_acc(isa, x, rows, k, dz, o, dw),
+        CpuLevel::Avx512 | CpuLevel::Amx => avx512::matmul_tn_acc(isa, x, rows, k, dz, o, dw),
         #[cfg(target_arch = "aarch64")]
         CpuLevel::Neon => neon::matmul_tn_acc(isa, x, rows, k, dz, o, dw),
         _ => scalar::matmul_tn_acc(x, rows, k, dz, o, dw),
@@ -460,7 +518,12 @@ fn matmul_tn_acc(isa: Isa, x: &[f32], rows: usize, k: usize, dz: &[f32], o: usiz
 /// The public face of the layer kernels, for tests and benchmarks: `out = relu?(x·W)`.
 pub fn matmul_with(isa: Isa, x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: &mut [f32], relu: bool) {
     assert!(o.is_multiple_of(16) && k.is_multiple_of(4), "matmul: o must be a multiple of 16, k of 4");
-    matmul(isa, x, rows, k, w, o, out, relu)
+    let mut packed = Vec::new();
+    if !isa.level().mlp_is_fp32() {
+        packed.resize(k.next_multiple_of(32) * o, 0);
+        pack_vnni(w, k, o, &mut packed);
+    }
+    matmul(isa, x, rows, k, LayerWeights { f32: w, bf16: &packed }, o, out, relu)
 }
 
 /// The public face of the first-column kernel, for tests and benchmarks: `out[b] = relu?(x[b]·W[:, 0])`.
@@ -578,6 +641,11 @@ impl MlpWorkspace {
 pub struct MlpParams {
     weights: Vec<f32>,
     transposed: Vec<f32>,
+    /// Per layer, `W` and `Wᵀ` rounded to bf16 and packed for the AMX level ([`pack_vnni`]),
+    /// at `packed_at[l]`: rewritten with the transposed copy.
+    packed: Vec<u16>,
+    packed_t: Vec<u16>,
+    packed_at: Vec<(usize, usize)>,
     layers: Vec<LayerShape>,
     synced: bool,
 }
@@ -586,10 +654,48 @@ impl MlpParams {
     /// Wraps `weights` (length [`Mlp::n_params`]) for `mlp`.
     pub fn new<const W: usize>(mlp: &Mlp<W>, weights: Vec<f32>) -> MlpParams {
         assert_eq!(weights.len(), mlp.n_params(), "mlp: parameter buffer has the wrong length");
-        let mut p =
-            MlpParams { transposed: vec![0.0; weights.len()], weights, layers: mlp.layers.clone(), synced: false };
+        let (mut at, mut at_t) = (0, 0);
+        let packed_at: Vec<(usize, usize)> = mlp
+            .layers
+            .iter()
+            .map(|l| {
+                let here = (at, at_t);
+                at += l.k.next_multiple_of(32) * l.o;
+                at_t += l.o.next_multiple_of(32) * l.k;
+                here
+            })
+            .collect();
+        let mut p = MlpParams {
+            transposed: vec![0.0; weights.len()],
+            weights,
+            packed: vec![0; at],
+            packed_t: vec![0; at_t],
+            packed_at,
+            layers: mlp.layers.clone(),
+            synced: false,
+        };
         p.sync();
         p
+    }
+
+    /// Layer `l`'s weights for the kernels.
+    fn layer(&self, l: usize) -> LayerWeights<'_> {
+        let s = self.layers[l];
+        let at = self.packed_at[l].0;
+        LayerWeights {
+            f32: &self.weights[s.offset..s.offset + s.k * s.o],
+            bf16: &self.packed[at..at + s.k.next_multiple_of(32) * s.o],
+        }
+    }
+
+    /// Layer `l`'s `Wᵀ` (`o × k`) for the kernels.
+    fn layer_transposed(&self, l: usize) -> LayerWeights<'_> {
+        let s = self.layers[l];
+        let at = self.packed_at[l].1;
+        LayerWeights {
+            f32: &self.transposed[s.offset..s.offset + s.k * s.o],
+            bf16: &self.packed_t[at..at + s.o.next_multiple_of(32) * s.k],
+        }
     }
 
     /// The weights.
@@ -603,14 +709,18 @@ impl MlpParams {
         &mut self.weights
     }
 
-    /// Rewrites the transposed copy from the weights.
+    /// Rewrites the transposed copy and the bf16 packs from the weights.
     pub fn sync(&mut self) {
-        for l in &self.layers {
+        for (l, &(at, at_t)) in self.layers.iter().zip(&self.packed_at) {
             for kk in 0..l.k {
                 for j in 0..l.o {
                     self.transposed[l.offset + j * l.k + kk] = self.weights[l.offset + kk * l.o + j];
                 }
             }
+            let w = &self.weights[l.offset..l.offset + l.k * l.o];
+            pack_vnni(w, l.k, l.o, &mut self.packed[at..]);
+            let wt = &self.transposed[l.offset..l.offset + l.k * l.o];
+            pack_vnni(wt, l.o, l.k, &mut self.packed_t[at_t..]);
         }
         self.synced = true;
     }
@@ -664,7 +774,8 @@ mod tests {
                 hidden_activation: Activation::Relu,
                 output_activation: Activation::None,
             });
-            let s = *mlp.layers().last().unwrap();
+            let last = mlp.layers().len() - 1;
+            let s = mlp.layers()[last];
             let c = o_real.next_multiple_of(4);
             let params = mlp.init_params(&mut rng);
             let rows = 37;
@@ -679,8 +790,7 @@ mod tests {
                 let mut g_full = g0.clone();
                 matmul_tn_acc(isa, &x, rows, s.k, &dz, s.o, &mut g_full);
                 let mut dx_full = vec![0.0f32; rows * s.k];
-                let wt = &params.transposed[s.offset..s.offset + s.k * s.o];
-                matmul(isa, &dz, rows, s.o, wt, s.k, &mut dx_full, false);
+                matmul(isa, &dz, rows, s.o, params.layer_transposed(last), s.k, &mut dx_full, false);
 
                 let mut ws = MlpWorkspace::default();
                 ws.reserve(mlp.layers());
@@ -688,7 +798,7 @@ mod tests {
                 let mut g = g0.clone();
                 let mut all = vec![0.0f32; mlp.n_params()];
                 all[s.offset..].copy_from_slice(&g);
-                narrow_output_backward(isa, &params, s, c, &x, rows, Some(&mut all[s.offset..]), &mut ws);
+                narrow_output_backward(isa, &params, last, c, &x, rows, Some(&mut all[s.offset..]), &mut ws);
                 g.copy_from_slice(&all[s.offset..]);
                 let bits = |v: &[f32]| v.iter().map(|f| f.to_bits()).collect::<Vec<_>>();
                 assert_eq!(bits(&g), bits(&g_full), "{isa}: weight gradient, {o_real} outputs");

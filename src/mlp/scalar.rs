@@ -44,3 +44,13 @@ pub fn matmul_tn_acc(x: &[f32], rows: usize, k: usize, dz: &[f32], o: usize, dw:
         }
     }
 }
+
+/// The AMX level's product, defined: [`matmul`] of `x` and `w` each rounded to bf16 (nearest
+/// even), products exact in fp32, summed in fp32 in `k` order. The tile unit sums each group
+/// of 32 products in its own order, so its results differ from this by fp32 summation order.
+pub fn matmul_bf16(x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: &mut [f32], relu: bool) {
+    let round = |v: &f32| f32::from_bits((super::bf16_bits(*v) as u32) << 16);
+    let xb: Vec<f32> = x[..rows * k].iter().map(round).collect();
+    let wb: Vec<f32> = w[..k * o].iter().map(round).collect();
+    matmul(&xb, rows, k, &wb, o, out, relu)
+}

@@ -13,7 +13,11 @@
 //! are [`Isa::scalar`], [`Isa::detect`], [`Isa::new`] and [`Isa::all`], which check the CPU.
 //! Kernels therefore take an `Isa` and may call `#[target_feature]` code without re-checking.
 //!
-//! The environment variable `RNERF_CPU_LEVEL` (`scalar`, `avx2`, `avx512`, `neon`) may
+//! The AMX level runs the MLP's forward and dL/dx products on AMX tiles with bf16 operands
+//! and fp32 sums (mixed precision; [`CpuLevel::Amx`]); it is the one level whose results
+//! differ from the others' beyond rounding order.
+//!
+//! The environment variable `RNERF_CPU_LEVEL` (`scalar`, `avx2`, `avx512`, `amx`, `neon`) may
 //! **lower** the level (for testing and for bisecting a numeric difference); a value above
 //! what the host has is ignored with a warning, never obeyed.
 
@@ -30,8 +34,8 @@ use std::sync::OnceLock;
 /// Name of the environment variable that may lower the CPU level.
 pub const CPU_LEVEL_ENV: &str = "RNERF_CPU_LEVEL";
 
-/// Ordered instruction-set levels: `Scalar` < `Avx2` < `Avx512` on x86_64, `Scalar` < `Neon`
-/// on aarch64.
+/// Ordered instruction-set levels: `Scalar` < `Avx2` < `Avx512` < `Amx` on x86_64, `Scalar` <
+/// `Neon` on aarch64.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum CpuLevel {
     /// Portable Rust, no explicit SIMD. Every kernel's reference.
@@ -44,6 +48,14 @@ pub enum CpuLevel {
     Avx512,
     /// aarch64 Advanced SIMD (NEON; part of every ARMv8-A core).
     Neon,
+    /// x86_64 with AMX-BF16 tiles and AVX512-BF16 on top of the AVX-512 level (Sapphire Rapids
+    /// and later), with the kernel's permission to use the tile state. The MLP's forward and
+    /// dL/dx products run on the tiles with **bf16 operands** (round to nearest even) and fp32
+    /// sums — mixed precision, as tiny-cuda-nn's fp16 MLP; weight gradients, the hash grid,
+    /// Adam and everything else stay fp32 (the AVX-512 and AVX2 kernels). Unlike the other
+    /// x86 levels it does **not** give `Avx2`'s bits: `RNERF_CPU_LEVEL=avx512` reproduces
+    /// those. See `mlp::amx`.
+    Amx,
 }
 
 impl CpuLevel {
@@ -54,16 +66,18 @@ impl CpuLevel {
             CpuLevel::Avx2 => "avx2",
             CpuLevel::Avx512 => "avx512",
             CpuLevel::Neon => "neon",
+            CpuLevel::Amx => "amx",
         }
     }
 
-    /// Parses a level name (`scalar`, `avx2`, `avx512`, `neon`), case-insensitively.
+    /// Parses a level name (`scalar`, `avx2`, `avx512`, `amx`, `neon`), case-insensitively.
     pub fn parse(s: &str) -> Option<CpuLevel> {
         match s.trim().to_ascii_lowercase().as_str() {
             "scalar" => Some(CpuLevel::Scalar),
             "avx2" => Some(CpuLevel::Avx2),
             "avx512" => Some(CpuLevel::Avx512),
             "neon" => Some(CpuLevel::Neon),
+            "amx" => Some(CpuLevel::Amx),
             _ => None,
         }
     }
@@ -75,18 +89,30 @@ impl CpuLevel {
             CpuLevel::Avx2 => host_has_avx2(),
             CpuLevel::Avx512 => host_has_avx512(),
             CpuLevel::Neon => host_has_neon(),
+            CpuLevel::Amx => host_has_amx(),
         }
     }
 
     /// Whether code written for `other` may run at this level: the level itself, scalar, and
-    /// AVX2 within AVX-512 (which requires everything AVX2 does).
+    /// the x86 levels below an x86 level (AVX-512 requires everything AVX2 does, AMX
+    /// everything AVX-512 does).
     pub fn includes(self, other: CpuLevel) -> bool {
-        self == other || other == CpuLevel::Scalar || (self == CpuLevel::Avx512 && other == CpuLevel::Avx2)
+        use CpuLevel::*;
+        self == other || other == Scalar || matches!((self, other), (Avx512, Avx2) | (Amx, Avx512 | Avx2))
+    }
+
+    /// Whether the level's MLP products have fp32 operands (every level but `Amx`, whose
+    /// forward and dL/dx products take bf16 operands). The fp32 levels agree with the scalar
+    /// spec to rounding; `Amx` agrees with its bf16 twin (`mlp::scalar::matmul_bf16`).
+    pub fn mlp_is_fp32(self) -> bool {
+        self != CpuLevel::Amx
     }
 
     /// The highest level the host supports, ignoring `RNERF_CPU_LEVEL`.
     pub fn host_max() -> CpuLevel {
-        if host_has_avx512() {
+        if host_has_amx() {
+            CpuLevel::Amx
+        } else if host_has_avx512() {
             CpuLevel::Avx512
         } else if host_has_avx2() {
             CpuLevel::Avx2
@@ -119,6 +145,34 @@ fn host_has_avx512() -> bool {
 }
 #[cfg(not(target_arch = "x86_64"))]
 fn host_has_avx512() -> bool {
+    false
+}
+
+/// AMX-BF16 and AMX-TILE (CPUID leaf 7), AVX512-BF16 for the conversions, and the kernel's
+/// permission to use the tile data state (`arch_prctl(ARCH_REQ_XCOMP_PERM, XTILEDATA)`, Linux
+/// ≥ 5.16), requested once per process.
+#[cfg(target_arch = "x86_64")]
+fn host_has_amx() -> bool {
+    static AMX: OnceLock<bool> = OnceLock::new();
+    *AMX.get_or_init(|| {
+        if !(host_has_avx512() && is_x86_feature_detected!("avx512bf16") && is_x86_feature_detected!("avx512bw")) {
+            return false;
+        }
+        // CPUID leaf 7 exists on every CPU with AVX-512 (checked above).
+        let leaf7 = std::arch::x86_64::__cpuid_count(7, 0);
+        let (amx_bf16, amx_tile) = (leaf7.edx & (1 << 22) != 0, leaf7.edx & (1 << 24) != 0);
+        if !(amx_bf16 && amx_tile) {
+            return false;
+        }
+        const ARCH_REQ_XCOMP_PERM: libc::c_long = 0x1023;
+        const XFEATURE_XTILEDATA: libc::c_long = 18;
+        // SAFETY: arch_prctl with these arguments only changes the process's permitted
+        // xsave features; it reads and writes no memory of ours.
+        unsafe { libc::syscall(libc::SYS_arch_prctl, ARCH_REQ_XCOMP_PERM, XFEATURE_XTILEDATA) == 0 }
+    })
+}
+#[cfg(not(target_arch = "x86_64"))]
+fn host_has_amx() -> bool {
     false
 }
 
@@ -166,7 +220,7 @@ impl Isa {
                 }
                 None => {
                     eprintln!(
-                        "warning: {CPU_LEVEL_ENV}={value} is not one of scalar, avx2, avx512, neon; using {host}"
+                        "warning: {CPU_LEVEL_ENV}={value} is not one of scalar, avx2, avx512, amx, neon; using {host}"
                     );
                     Isa(host)
                 }
@@ -178,7 +232,7 @@ impl Isa {
     /// kernel on each of these; with `RNERF_CPU_LEVEL=scalar` this is just `[scalar]`.
     pub fn all() -> Vec<Isa> {
         let top = Isa::detect();
-        [CpuLevel::Scalar, CpuLevel::Avx2, CpuLevel::Avx512, CpuLevel::Neon]
+        [CpuLevel::Scalar, CpuLevel::Avx2, CpuLevel::Avx512, CpuLevel::Amx, CpuLevel::Neon]
             .into_iter()
             .filter(|&l| top.0.includes(l))
             .filter_map(Isa::new)
@@ -206,7 +260,10 @@ mod tests {
         assert!(CpuLevel::Scalar < CpuLevel::Avx2);
         assert!(CpuLevel::Avx2 < CpuLevel::Avx512);
         assert!(CpuLevel::Scalar < CpuLevel::Neon);
-        for l in [CpuLevel::Scalar, CpuLevel::Avx2, CpuLevel::Avx512, CpuLevel::Neon] {
+        assert!(CpuLevel::Avx512 < CpuLevel::Amx);
+        assert!(CpuLevel::Amx.includes(CpuLevel::Avx512) && CpuLevel::Amx.includes(CpuLevel::Avx2));
+        assert!(!CpuLevel::Avx512.includes(CpuLevel::Amx));
+        for l in [CpuLevel::Scalar, CpuLevel::Avx2, CpuLevel::Avx512, CpuLevel::Amx, CpuLevel::Neon] {
             assert_eq!(CpuLevel::parse(l.name()), Some(l));
             assert!(l.includes(l) && l.includes(CpuLevel::Scalar));
         }

@@ -150,3 +150,28 @@ pub fn lively_nerf(
     let occupancy = OccupancyGrid::new(aabb, OccupancyConfig { resolution: 4, ..Default::default() });
     Nerf { field, params, occupancy }
 }
+
+/// Tolerance of a check against the f64 reference at `isa`: `fp32` at the fp32 levels; at the
+/// AMX level, whose MLP forward and dL/dx products take bf16 operands (8 significant bits),
+/// at least 3e-2.
+pub fn mlp_tol(isa: residual_nerf::simd::Isa, fp32: f64) -> f64 {
+    if isa.level().mlp_is_fp32() {
+        fp32
+    } else {
+        fp32.max(3e-2)
+    }
+}
+
+/// Whether a case whose pre-activations lie `margin` from the nearest ReLU kink is checked
+/// against the f64 reference at `isa`: always at the fp32 levels (their callers skip cases
+/// within rounding of a kink); at the AMX level only beyond 2e-2, as bf16 rounding of a
+/// layer's inputs can move a pre-activation across a kink closer than that and flip a unit.
+pub fn kink_is_clear(isa: residual_nerf::simd::Isa, margin: f64) -> bool {
+    isa.level().mlp_is_fp32() || margin > 2e-2
+}
+
+/// The best level whose MLP products are fp32: for finite differences through the crate's own
+/// forward, which the AMX level's bf16 operands make piecewise constant at small steps.
+pub fn best_fp32_isa() -> residual_nerf::simd::Isa {
+    residual_nerf::simd::Isa::all().into_iter().rfind(|i| i.level().mlp_is_fp32()).expect("scalar is always there")
+}

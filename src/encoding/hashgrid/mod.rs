@@ -181,7 +181,9 @@ impl HashGrid {
                     #[cfg(target_arch = "x86_64")]
                     CpuLevel::Avx2 => avx2::forward_level(isa, level, t, &soa, pos.len(), out, width),
                     #[cfg(target_arch = "x86_64")]
-                    CpuLevel::Avx512 => avx512::forward_level(isa, level, t, &soa, pos.len(), out, width),
+                    CpuLevel::Avx512 | CpuLevel::Amx => {
+                        avx512::forward_level(isa, level, t, &soa, pos.len(), out, width)
+                    }
                     #[cfg(target_arch = "aarch64")]
                     CpuLevel::Neon => neon::forward_level(isa, level, t, &soa, pos.len(), out, width),
                     _ => scalar::forward_level(level, t, &soa, pos.len(), out, width),
@@ -280,7 +282,7 @@ impl HashGrid {
                     let d = &d_out[c * CHUNK * stride..];
                     match isa.level() {
                         #[cfg(target_arch = "x86_64")]
-                        CpuLevel::Avx2 | CpuLevel::Avx512 => {
+                        CpuLevel::Avx2 | CpuLevel::Avx512 | CpuLevel::Amx => {
                             avx2::backward_level(isa, level, g, &soa, pos.len(), d, stride)
                         }
                         #[cfg(target_arch = "aarch64")]

@@ -130,7 +130,7 @@ pub fn step_kernel(
     assert!(g.len() == n && m.len() == n && v.len() == n && mirror.as_ref().is_none_or(|h| h.len() == n));
     match isa.level() {
         #[cfg(target_arch = "x86_64")]
-        CpuLevel::Avx2 | CpuLevel::Avx512 => avx2::step(isa, hp, p, g, m, v, mirror),
+        CpuLevel::Avx2 | CpuLevel::Avx512 | CpuLevel::Amx => avx2::step(isa, hp, p, g, m, v, mirror),
         #[cfg(target_arch = "aarch64")]
         CpuLevel::Neon => neon::step(isa, hp, p, g, m, v, mirror),
         _ => scalar::step(hp, p, g, m, v, mirror),
