@@ -9,7 +9,7 @@ mod common;
 use common::{assert_close, cases};
 use proptest::prelude::*;
 use residual_nerf::encoding::{HashGrid, HashGridConfig, HashGridParams};
-use residual_nerf::mlp::scalar::matmul_bf16;
+use residual_nerf::mlp::scalar::{matmul_bf16, matmul_tn_acc_bf16};
 use residual_nerf::mlp::{
     matmul_first_with, matmul_tn_acc_with, matmul_with, Activation, Mlp, MlpConfig, MlpContext, MlpWorkspace,
 };
@@ -98,12 +98,12 @@ proptest! {
     }
 
     /// Layer kernels: |Δ| ≤ 1e-5 · (1 + k) per output (inputs in [−1, 1]) against the scalar
-    /// spec — at the AMX level against its bf16 twin `matmul_bf16` (the rounding is the
-    /// same, the tile unit's summation order is its own); the fp32 x86 levels (AVX2,
-    /// AVX-512: the same FMA chain per output, tiled differently) agree bit for bit. The
-    /// weight-gradient kernel is fp32 on every level.
+    /// spec — at the AMX level against its bf16 twins `matmul_bf16` and `matmul_tn_acc_bf16`
+    /// (the rounding is the same, the tile unit's summation order is its own); the fp32 x86
+    /// levels (AVX2, AVX-512: the same FMA chain per output, tiled differently) agree bit for
+    /// bit.
     #[test]
-    fn matmul_kernels_match_scalar(k in prop::sample::select(vec![16usize, 32, 48, 64]), o in prop::sample::select(vec![16usize, 32, 48, 64]), relu in any::<bool>(), seed in any::<u64>()) {
+    fn matmul_kernels_match_scalar(k in prop::sample::select(vec![8usize, 16, 24, 32, 48, 64]), o in prop::sample::select(vec![16usize, 32, 48, 64]), relu in any::<bool>(), seed in any::<u64>()) {
         let mut rng = Rng::new(seed);
         let w: Vec<f32> = (0..k * o).map(|_| rng.uniform(-1.0, 1.0)).collect();
         for &rows in SIZES {
@@ -114,7 +114,9 @@ proptest! {
             let mut want_bf16 = vec![0.0; rows * o];
             matmul_bf16(&x, rows, k, &w, o, &mut want_bf16, relu);
             let mut want_dw: Vec<f32> = (0..k * o).map(|i| i as f32 * 0.01).collect();
+            let mut want_dw_bf16 = want_dw.clone();
             matmul_tn_acc_with(Isa::scalar(), &x, rows, k, &dz, o, &mut want_dw);
+            matmul_tn_acc_bf16(&x, rows, k, &dz, o, &mut want_dw_bf16);
             let mut x86: Option<(Isa, Vec<f32>, Vec<f32>)> = None;
             for isa in simd_levels() {
                 let mut got = vec![f32::NAN; rows * o];
@@ -123,7 +125,8 @@ proptest! {
                 assert_close(&got, want, 1e-5 * (1.0 + k as f32), 0.0, &format!("{isa} matmul rows={rows} k={k} o={o}"));
                 let mut got_dw: Vec<f32> = (0..k * o).map(|i| i as f32 * 0.01).collect();
                 matmul_tn_acc_with(isa, &x, rows, k, &dz, o, &mut got_dw);
-                assert_close(&got_dw, &want_dw, 1e-5 * (1.0 + rows as f32), 1e-6, &format!("{isa} matmul_tn_acc rows={rows} k={k} o={o}"));
+                let want_dw = if isa.level().mlp_is_fp32() { &want_dw } else { &want_dw_bf16 };
+                assert_close(&got_dw, want_dw, 1e-5 * (1.0 + rows as f32), 1e-6, &format!("{isa} matmul_tn_acc rows={rows} k={k} o={o}"));
                 if matches!(isa.level(), CpuLevel::Avx2 | CpuLevel::Avx512) {
                     if let Some((first, y, dw)) = &x86 {
                         let same = |a: &[f32], b: &[f32]| a.iter().zip(b).all(|(a, b)| a.to_bits() == b.to_bits());

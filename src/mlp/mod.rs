@@ -508,7 +508,9 @@ fn matmul_tn_acc(isa: Isa, x: &[f32], rows: usize, k: usize, dz: &[f32], o: usiz
         #[cfg(target_arch = "x86_64")]
         CpuLevel::Avx2 => avx2::matmul_tn_acc(isa, x, rows, k, dz, o, dw),
         #[cfg(target_arch = "x86_64")]
-        CpuLevel::Avx512 | CpuLevel::Amx => avx512::matmul_tn_acc(isa, x, rows, k, dz, o, dw),
+        CpuLevel::Avx512 => avx512::matmul_tn_acc(isa, x, rows, k, dz, o, dw),
+        #[cfg(target_arch = "x86_64")]
+        CpuLevel::Amx => amx::matmul_tn_acc(isa, x, rows, k, dz, o, dw),
         #[cfg(target_arch = "aarch64")]
         CpuLevel::Neon => neon::matmul_tn_acc(isa, x, rows, k, dz, o, dw),
         _ => scalar::matmul_tn_acc(x, rows, k, dz, o, dw),

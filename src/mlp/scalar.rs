@@ -54,3 +54,13 @@ pub fn matmul_bf16(x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: &
     let wb: Vec<f32> = w[..k * o].iter().map(round).collect();
     matmul(&xb, rows, k, &wb, o, out, relu)
 }
+
+/// The AMX level's weight gradient, defined: [`matmul_tn_acc`] of `x` and `dz` each rounded to
+/// bf16 (nearest even), products exact in fp32, summed in fp32 in row order onto `dw`. The
+/// tile unit sums each group of 32 rows in its own order (to fp32 summation error).
+pub fn matmul_tn_acc_bf16(x: &[f32], rows: usize, k: usize, dz: &[f32], o: usize, dw: &mut [f32]) {
+    let round = |v: &f32| f32::from_bits((super::bf16_bits(*v) as u32) << 16);
+    let xb: Vec<f32> = x[..rows * k].iter().map(round).collect();
+    let db: Vec<f32> = dz[..rows * o].iter().map(round).collect();
+    matmul_tn_acc(&xb, rows, k, &db, o, dw)
+}

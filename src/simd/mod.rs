@@ -13,7 +13,7 @@
 //! are [`Isa::scalar`], [`Isa::detect`], [`Isa::new`] and [`Isa::all`], which check the CPU.
 //! Kernels therefore take an `Isa` and may call `#[target_feature]` code without re-checking.
 //!
-//! The AMX level runs the MLP's forward and dL/dx products on AMX tiles with bf16 operands
+//! The AMX level runs the MLP's layer products on AMX tiles with bf16 operands
 //! and fp32 sums (mixed precision; [`CpuLevel::Amx`]); it is the one level whose results
 //! differ from the others' beyond rounding order.
 //!
@@ -49,10 +49,11 @@ pub enum CpuLevel {
     /// aarch64 Advanced SIMD (NEON; part of every ARMv8-A core).
     Neon,
     /// x86_64 with AMX-BF16 tiles and AVX512-BF16 on top of the AVX-512 level (Sapphire Rapids
-    /// and later), with the kernel's permission to use the tile state. The MLP's forward and
-    /// dL/dx products run on the tiles with **bf16 operands** (round to nearest even) and fp32
-    /// sums — mixed precision, as tiny-cuda-nn's fp16 MLP; weight gradients, the hash grid,
-    /// Adam and everything else stay fp32 (the AVX-512 and AVX2 kernels). Unlike the other
+    /// and later), with the kernel's permission to use the tile state. The MLP's layer
+    /// products (forward, dL/dx and weight gradients) run on the tiles with **bf16 operands**
+    /// (round to nearest even) and fp32 sums — mixed precision, as tiny-cuda-nn's fp16 MLP,
+    /// with fp32 master weights; the hash grid, Adam and everything else stay fp32 (the
+    /// AVX-512 and AVX2 kernels). Unlike the other
     /// x86 levels it does **not** give `Avx2`'s bits: `RNERF_CPU_LEVEL=avx512` reproduces
     /// those. See `mlp::amx`.
     Amx,
@@ -102,8 +103,9 @@ impl CpuLevel {
     }
 
     /// Whether the level's MLP products have fp32 operands (every level but `Amx`, whose
-    /// forward and dL/dx products take bf16 operands). The fp32 levels agree with the scalar
-    /// spec to rounding; `Amx` agrees with its bf16 twin (`mlp::scalar::matmul_bf16`).
+    /// layer products take bf16 operands). The fp32 levels agree with the scalar spec to
+    /// rounding; `Amx` agrees with its bf16 twins (`mlp::scalar::matmul_bf16`,
+    /// `matmul_tn_acc_bf16`).
     pub fn mlp_is_fp32(self) -> bool {
         self != CpuLevel::Amx
     }
