@@ -22,16 +22,15 @@ pub fn fma_loop(isa: Isa, iters: u64, seed: f32) -> (f32, f64) {
 
 /// The AMX tile unit's bf16 peak, FLOPs done by `iters` rounds (`None` below the AMX level).
 pub fn tile_loop(isa: Isa, iters: u64) -> Option<f64> {
-    match isa.level() {
-        #[cfg(target_arch = "x86_64")]
-        CpuLevel::Amx => {
-            let mut sink = [0f32; 256];
-            crate::mlp::amx::tile_peak_loop(isa, iters, &mut sink);
-            std::hint::black_box(&sink);
-            Some(iters as f64 * crate::mlp::amx::TILE_PEAK_FLOPS_PER_ITER)
-        }
-        _ => None,
+    #[cfg(target_arch = "x86_64")]
+    if isa.level() == CpuLevel::Amx {
+        let mut sink = [0f32; 256];
+        crate::mlp::amx::tile_peak_loop(isa, iters, &mut sink);
+        std::hint::black_box(&sink);
+        return Some(iters as f64 * crate::mlp::amx::TILE_PEAK_FLOPS_PER_ITER);
     }
+    let _ = (isa, iters);
+    None
 }
 
 fn fma_scalar(iters: u64, seed: f32) -> f32 {
