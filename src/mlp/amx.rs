@@ -16,8 +16,12 @@
 //! two `A` tiles (16 rows × 32 k-values of `x`, bf16), two `B` tiles (32 k-values × 16
 //! columns of `W`, in the VNNI pair layout) and four fp32 accumulators. A block of 16 rows or
 //! 16 columns runs the same instructions on half the tiles. `x` is staged per 32-row block into
-//! a stack buffer (zero columns past `k`, zero rows up to the last loaded tile's end); full 16-row accumulators
-//! are stored straight into `out`, a partial last one into a stack buffer first.
+//! a stack buffer (zero columns past `k`, zero rows up to the last loaded tile's end); full
+//! 16-row accumulators are stored straight into `out`, a partial last one into a stack buffer
+//! first. The weight gradient tiles `dW` the same way, its rows being `x`'s columns: `x` staged
+//! transposed (`A`: 16 of its columns × 32 samples), `dz` in pairs of samples (`B`), each block
+//! of `dW` loaded into the accumulators and stored back (through a stack buffer when `k` is not
+//! a multiple of 16).
 //!
 //! The tile state is configured (`ldtilecfg`) once per thread, on its first call, and kept:
 //! a configure + release pair costs ~56 ns (measured), and a training step makes ~9 calls per
