@@ -148,45 +148,7 @@ unsafe fn matmul_unchecked(x: &[f32], rows: usize, k: usize, packed: &[u16], o: 
                 for kk in (0..k32).step_by(32) {
                     let ap = a.add(kk) as *const u16;
                     let bp = packed.as_ptr().add((kk / 2) * 2 * o + 2 * j);
-                    match (two_rows, two_cols) {
-                        (true, true) => asm!(
-                            "tileloadd tmm4, [{a} + {sa}*1]",
-                            "tileloadd tmm5, [{a2} + {sa}*1]",
-                            "tileloadd tmm6, [{b} + {sb}*1]",
-                            "tileloadd tmm7, [{b2} + {sb}*1]",
-                            "tdpbf16ps tmm0, tmm4, tmm6",
-                            "tdpbf16ps tmm1, tmm4, tmm7",
-                            "tdpbf16ps tmm2, tmm5, tmm6",
-                            "tdpbf16ps tmm3, tmm5, tmm7",
-                            a = in(reg) ap, a2 = in(reg) ap.add(16 * k32), sa = in(reg) sa,
-                            b = in(reg) bp, b2 = in(reg) bp.add(32), sb = in(reg) sb,
-                            options(nostack, readonly)),
-                        (true, false) => asm!(
-                            "tileloadd tmm4, [{a} + {sa}*1]",
-                            "tileloadd tmm5, [{a2} + {sa}*1]",
-                            "tileloadd tmm6, [{b} + {sb}*1]",
-                            "tdpbf16ps tmm0, tmm4, tmm6",
-                            "tdpbf16ps tmm2, tmm5, tmm6",
-                            a = in(reg) ap, a2 = in(reg) ap.add(16 * k32), sa = in(reg) sa,
-                            b = in(reg) bp, sb = in(reg) sb,
-                            options(nostack, readonly)),
-                        (false, true) => asm!(
-                            "tileloadd tmm4, [{a} + {sa}*1]",
-                            "tileloadd tmm6, [{b} + {sb}*1]",
-                            "tileloadd tmm7, [{b2} + {sb}*1]",
-                            "tdpbf16ps tmm0, tmm4, tmm6",
-                            "tdpbf16ps tmm1, tmm4, tmm7",
-                            a = in(reg) ap, sa = in(reg) sa,
-                            b = in(reg) bp, b2 = in(reg) bp.add(32), sb = in(reg) sb,
-                            options(nostack, readonly)),
-                        (false, false) => asm!(
-                            "tileloadd tmm4, [{a} + {sa}*1]",
-                            "tileloadd tmm6, [{b} + {sb}*1]",
-                            "tdpbf16ps tmm0, tmm4, tmm6",
-                            a = in(reg) ap, sa = in(reg) sa,
-                            b = in(reg) bp, sb = in(reg) sb,
-                            options(nostack, readonly)),
-                    }
+                    products(two_rows, two_cols, ap, ap.add(16 * k32), sa, bp, bp.add(32), sb);
                 }
             }
             // Store the accumulators: tile 0 (rows 0-15, column j), 1 (j + 16), 2 (rows
@@ -396,45 +358,7 @@ unsafe fn matmul_tn_acc_unchecked(x: &[f32], rows: usize, k: usize, dz: &[f32], 
                     for r in (0..r32).step_by(32) {
                         let ap = (xt as *const u16).add(kb * r32 + r);
                         let bp = (dzv as *const u16).add((r / 2) * 2 * o + 2 * j);
-                        match (two_k, two_j) {
-                            (true, true) => asm!(
-                                "tileloadd tmm4, [{a} + {sa}*1]",
-                                "tileloadd tmm5, [{a2} + {sa}*1]",
-                                "tileloadd tmm6, [{b} + {sb}*1]",
-                                "tileloadd tmm7, [{b2} + {sb}*1]",
-                                "tdpbf16ps tmm0, tmm4, tmm6",
-                                "tdpbf16ps tmm1, tmm4, tmm7",
-                                "tdpbf16ps tmm2, tmm5, tmm6",
-                                "tdpbf16ps tmm3, tmm5, tmm7",
-                                a = in(reg) ap, a2 = in(reg) ap.add(16 * r32), sa = in(reg) sa,
-                                b = in(reg) bp, b2 = in(reg) bp.add(32), sb = in(reg) sb,
-                                options(nostack, readonly)),
-                            (true, false) => asm!(
-                                "tileloadd tmm4, [{a} + {sa}*1]",
-                                "tileloadd tmm5, [{a2} + {sa}*1]",
-                                "tileloadd tmm6, [{b} + {sb}*1]",
-                                "tdpbf16ps tmm0, tmm4, tmm6",
-                                "tdpbf16ps tmm2, tmm5, tmm6",
-                                a = in(reg) ap, a2 = in(reg) ap.add(16 * r32), sa = in(reg) sa,
-                                b = in(reg) bp, sb = in(reg) sb,
-                                options(nostack, readonly)),
-                            (false, true) => asm!(
-                                "tileloadd tmm4, [{a} + {sa}*1]",
-                                "tileloadd tmm6, [{b} + {sb}*1]",
-                                "tileloadd tmm7, [{b2} + {sb}*1]",
-                                "tdpbf16ps tmm0, tmm4, tmm6",
-                                "tdpbf16ps tmm1, tmm4, tmm7",
-                                a = in(reg) ap, sa = in(reg) sa,
-                                b = in(reg) bp, b2 = in(reg) bp.add(32), sb = in(reg) sb,
-                                options(nostack, readonly)),
-                            (false, false) => asm!(
-                                "tileloadd tmm4, [{a} + {sa}*1]",
-                                "tileloadd tmm6, [{b} + {sb}*1]",
-                                "tdpbf16ps tmm0, tmm4, tmm6",
-                                a = in(reg) ap, sa = in(reg) sa,
-                                b = in(reg) bp, sb = in(reg) sb,
-                                options(nostack, readonly)),
-                        }
+                        products(two_k, two_j, ap, ap.add(16 * r32), sa, bp, bp.add(32), sb);
                     }
                 }
                 for (t, dr, dc) in blocks {
@@ -473,6 +397,64 @@ unsafe fn load_tile(t: usize, p: *const f32, stride: usize) {
             1 => asm!("tileloadd tmm1, [{p} + {s}*1]", p = in(reg) p, s = in(reg) stride, options(nostack, readonly)),
             2 => asm!("tileloadd tmm2, [{p} + {s}*1]", p = in(reg) p, s = in(reg) stride, options(nostack, readonly)),
             _ => asm!("tileloadd tmm3, [{p} + {s}*1]", p = in(reg) p, s = in(reg) stride, options(nostack, readonly)),
+        }
+    }
+}
+
+/// One k-step of a block: loads `A` tiles 4 (rows at `a`) and 5 (at `a2`, when `two_a`) with
+/// byte stride `sa`, `B` tiles 6 (at `b`) and 7 (at `b2`, when `two_b`) with stride `sb`, and
+/// accumulates their products into tiles 0 (A4·B6), 1 (A4·B7), 2 (A5·B6) and 3 (A5·B7).
+///
+/// # Safety
+/// Tiles configured; each loaded tile's 16 rows of 64 bytes readable.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+unsafe fn products(
+    two_a: bool,
+    two_b: bool,
+    a: *const u16,
+    a2: *const u16,
+    sa: usize,
+    b: *const u16,
+    b2: *const u16,
+    sb: usize,
+) {
+    // SAFETY: the caller guarantees the tile configuration and the rows each load reads.
+    unsafe {
+        match (two_a, two_b) {
+            (true, true) => asm!(
+                "tileloadd tmm4, [{a} + {sa}*1]",
+                "tileloadd tmm5, [{a2} + {sa}*1]",
+                "tileloadd tmm6, [{b} + {sb}*1]",
+                "tileloadd tmm7, [{b2} + {sb}*1]",
+                "tdpbf16ps tmm0, tmm4, tmm6",
+                "tdpbf16ps tmm1, tmm4, tmm7",
+                "tdpbf16ps tmm2, tmm5, tmm6",
+                "tdpbf16ps tmm3, tmm5, tmm7",
+                a = in(reg) a, a2 = in(reg) a2, sa = in(reg) sa, b = in(reg) b, b2 = in(reg) b2, sb = in(reg) sb,
+                options(nostack, readonly)),
+            (true, false) => asm!(
+                "tileloadd tmm4, [{a} + {sa}*1]",
+                "tileloadd tmm5, [{a2} + {sa}*1]",
+                "tileloadd tmm6, [{b} + {sb}*1]",
+                "tdpbf16ps tmm0, tmm4, tmm6",
+                "tdpbf16ps tmm2, tmm5, tmm6",
+                a = in(reg) a, a2 = in(reg) a2, sa = in(reg) sa, b = in(reg) b, sb = in(reg) sb,
+                options(nostack, readonly)),
+            (false, true) => asm!(
+                "tileloadd tmm4, [{a} + {sa}*1]",
+                "tileloadd tmm6, [{b} + {sb}*1]",
+                "tileloadd tmm7, [{b2} + {sb}*1]",
+                "tdpbf16ps tmm0, tmm4, tmm6",
+                "tdpbf16ps tmm1, tmm4, tmm7",
+                a = in(reg) a, sa = in(reg) sa, b = in(reg) b, b2 = in(reg) b2, sb = in(reg) sb,
+                options(nostack, readonly)),
+            (false, false) => asm!(
+                "tileloadd tmm4, [{a} + {sa}*1]",
+                "tileloadd tmm6, [{b} + {sb}*1]",
+                "tdpbf16ps tmm0, tmm4, tmm6",
+                a = in(reg) a, sa = in(reg) sa, b = in(reg) b, sb = in(reg) sb,
+                options(nostack, readonly)),
         }
     }
 }
