@@ -123,8 +123,8 @@ unsafe fn matmul_unchecked(x: &[f32], rows: usize, k: usize, packed: &[u16], o: 
     if rows == 0 {
         return;
     }
-    // Staging buffers, written before they are read (stage_rows writes all 32 rows; a tile
-    // store fills `part` before it is copied from): left uninitialised, not cleared per call.
+    // Staging buffers, written before they are read (stage_rows writes every row a tile load
+    // reads; a tile store fills `part` before it is copied from): left uninitialised.
     let mut a = std::mem::MaybeUninit::<[u16; 32 * MAX_K]>::uninit();
     let a = a.as_mut_ptr() as *mut u16;
     let mut part = std::mem::MaybeUninit::<[f32; 16 * 16]>::uninit();
@@ -151,12 +151,7 @@ unsafe fn matmul_unchecked(x: &[f32], rows: usize, k: usize, packed: &[u16], o: 
                     products(two_rows, two_cols, ap, ap.add(16 * k32), sa, bp, bp.add(32), sb);
                 }
             }
-            // Store the accumulators: tile 0 (rows 0-15, column j), 1 (j + 16), 2 (rows
-            // 16-31, j), 3 (rows 16-31, j + 16).
-            for (t, dr, dc) in [(0, 0, 0), (1, 0, 16), (2, 16, 0), (3, 16, 16)] {
-                if (dc == 16 && !two_cols) || (dr == 16 && !two_rows) {
-                    continue;
-                }
+            for (t, dr, dc) in accumulators(two_rows, two_cols) {
                 let r0 = b0 + dr;
                 let valid = (rows - r0).min(16);
                 if valid == 16 {
@@ -326,17 +321,11 @@ unsafe fn matmul_tn_acc_unchecked(x: &[f32], rows: usize, k: usize, dz: &[f32], 
             let two_k = kb + 16 < k16;
             for j in (0..o).step_by(32) {
                 let two_j = j + 16 < o;
-                // The accumulators: tile 0 (dw rows kb.., column j), 1 (j + 16), 2 (rows
-                // kb + 16..), 3; a row block with fewer than 16 rows of dw via `part`.
-                let blocks = [(0usize, 0usize, 0usize), (1, 0, 16), (2, 16, 0), (3, 16, 16)];
-                let used = |dr: usize, dc: usize| (dc != 16 || two_j) && (dr != 16 || two_k);
-                for (t, dr, dc) in blocks {
-                    if !used(dr, dc) {
-                        continue;
-                    }
+                // The accumulators hold blocks of dw (rows kb + dr, columns j + dc); a block
+                // with fewer than 16 rows of dw (r0 < k always: k16 - k < 16) goes via `part`.
+                for (t, dr, dc) in accumulators(two_k, two_j) {
                     let r0 = kb + dr;
-                    let valid = k - r0.min(k);
-                    let valid = valid.min(16);
+                    let valid = (k - r0).min(16);
                     // SAFETY: a full block loads 16 rows × 16 columns of dw (in bounds); a
                     // partial one loads `part` (16 × 16 floats), its first `valid` rows
                     // copied from dw and the rest zero.
@@ -361,12 +350,9 @@ unsafe fn matmul_tn_acc_unchecked(x: &[f32], rows: usize, k: usize, dz: &[f32], 
                         products(two_k, two_j, ap, ap.add(16 * r32), sa, bp, bp.add(32), sb);
                     }
                 }
-                for (t, dr, dc) in blocks {
-                    if !used(dr, dc) {
-                        continue;
-                    }
+                for (t, dr, dc) in accumulators(two_k, two_j) {
                     let r0 = kb + dr;
-                    let valid = (k - r0.min(k)).min(16);
+                    let valid = (k - r0).min(16);
                     // SAFETY: as for the loads above.
                     unsafe {
                         if valid == 16 {
@@ -382,6 +368,15 @@ unsafe fn matmul_tn_acc_unchecked(x: &[f32], rows: usize, k: usize, dz: &[f32], 
             }
         }
     }
+}
+
+/// The accumulator tiles a block uses, as [`products`] assigns them: `(tile, row offset, column
+/// offset)` — tile 0 at (0, 0), 1 at (0, 16) when `two_b`, 2 at (16, 0) when `two_a`, 3 at
+/// (16, 16) when both.
+fn accumulators(two_a: bool, two_b: bool) -> impl Iterator<Item = (usize, usize, usize)> {
+    [(0, 0, 0), (1, 0, 16), (2, 16, 0), (3, 16, 16)]
+        .into_iter()
+        .filter(move |&(_, dr, dc)| (dc == 0 || two_b) && (dr == 0 || two_a))
 }
 
 /// Loads accumulator tile `t` (0-3), 16 rows of 64 bytes, from `p` with byte stride `stride`.

@@ -471,10 +471,8 @@ fn matmul_first(isa: Isa, x: &[f32], rows: usize, k: usize, w: &[f32], o: usize,
         CpuLevel::Amx => {
             // Column 0 of the tile product (forward_first does not come here: it runs the
             // whole forward at this level).
-            let mut packed = vec![0; k.next_multiple_of(32) * o];
-            pack_vnni(w, k, o, &mut packed);
             let mut full = vec![0.0; rows * o];
-            amx::matmul(isa, x, rows, k, &packed, o, &mut full, relu);
+            matmul_with(isa, x, rows, k, w, o, &mut full, relu);
             out[..rows].iter_mut().zip(full.chunks_exact(o)).for_each(|(y, r)| *y = r[0]);
         }
         #[cfg(target_arch = "aarch64")]

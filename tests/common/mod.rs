@@ -164,10 +164,11 @@ pub fn mlp_tol(isa: residual_nerf::simd::Isa, fp32: f64) -> f64 {
 
 /// Whether a case whose pre-activations lie `margin` from the nearest ReLU kink is checked
 /// against the f64 reference at `isa`: always at the fp32 levels (their callers skip cases
-/// within rounding of a kink); at the AMX level only beyond 2e-2, as bf16 rounding of a
-/// layer's inputs can move a pre-activation across a kink closer than that and flip a unit.
+/// within rounding of a kink); at the AMX level only beyond 5e-2: bf16 rounding of a layer's
+/// inputs and weights moves a pre-activation by ~1e-2 (measured: at 2e-2, a case whose nearest
+/// unit was 0.037 from its kink failed once in 1264), and a flipped unit changes a gradient by O(1).
 pub fn kink_is_clear(isa: residual_nerf::simd::Isa, margin: f64) -> bool {
-    isa.level().mlp_is_fp32() || margin > 2e-2
+    isa.level().mlp_is_fp32() || margin > 5e-2
 }
 
 /// The best level whose MLP products are fp32: for finite differences through the crate's own
