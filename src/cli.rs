@@ -12,9 +12,13 @@ pub const USAGE: &str = "usage: rnerf <command> [options]
 commands:
   train  --data DIR --out MODEL [--steps N] [--rays N] [--log2t N] [--seed S] [--threads N]
          [--split NAME] [--csv FILE] [--lr LR] [--distortion L] [--near-grad D] [--fixed-background] [--background BG_MODEL [--mix mixnet|sum]
-         [--density-mix raw|activated] [--mixnet-encoding own|shared]] [--checkpoint-every N]
+         [--density-mix raw|activated] [--mixnet-encoding own|shared] [--prior all|none|warm-start,region,focus]
+         [--background-data BG_DIR]] [--checkpoint-every N] [--scene-views N]
          train a NeRF on DIR's transforms_<split>.json (default split: train); with --background,
-         a Residual-NeRF (residual + Mixnet over the frozen background; --mix sum: Residual-NeRF-S).
+         a Residual-NeRF (residual + Mixnet over the frozen background; --mix sum: Residual-NeRF-S),
+         by default background-aware (--prior all: start at the background, a change region voted
+         from change maps against BG_DIR's images at the same poses or the rendered background,
+         half the rays from changed pixels; --prior none: the paper's Residual-NeRF).
          Checkpoints go to MODEL with '.ckpt' before the extension (every N steps, and on
          SIGINT/SIGTERM, which then exit 130/143); a finished run removes its checkpoint
   train  --resume CHECKPOINT --data DIR --out MODEL [--split NAME] [--csv FILE] [--threads N]
@@ -28,14 +32,17 @@ commands:
          [--crop frame|full|HALF] [--limit METRES] [--json] [--threads N]
          depth MAE / RMSE / hole rate inside the crops, and PSNR (default split: test)
   compare --background DIR --scene DIR [--scene DIR ...] --out DIR [--background-model MODEL]
-         [--methods dex,residual,residual-s,...] [--steps N] [--rays N] [--log2t N]
-         [--seed S] [--eval-every N] [--m M | --m-raw S] [--m-sweep M,M,...] [--threads N]
+         [--methods dex,finetune,residual-paper,residual,...] [--scene-views N] [--steps N] [--rays N]
+         [--log2t N] [--seed S] [--eval-every N] [--m M | --m-raw S] [--m-sweep M,M,...] [--threads N]
          (--m-sweep: also score the final models at these σ thresholds, default 3,10,20,40;
-         methods: dex, residual, residual-activated, residual-shared, residual-activated-shared,
-         residual-s)
-         the paper's protocol: train the background on DIR (or load MODEL), then per scene Dex-NeRF
-         (and NeRF's expected depth), Residual-NeRF and Residual-NeRF-S; writes table.md, table.json,
-         curves.csv, <scene>/curves.png and <scene>/depth_<i>.png side by side
+         methods: dex, finetune, residual, residual-no-warm-start, residual-no-region,
+         residual-no-focus, residual-paper, residual-paper-activated, residual-paper-shared,
+         residual-paper-activated-shared, residual-s)
+         the paper's protocol and more: train the background on DIR (or load MODEL), then per scene
+         Dex-NeRF (and NeRF's expected depth), the fine-tuned background, the paper's Residual-NeRF
+         and the background-aware Residual-NeRF; scored on the object mask, the near crop (< 1.5 m)
+         and the crop; writes table.md, table.json, curves.csv, <scene>/curves.png and
+         <scene>/depth_<i>.png side by side
   demo   [--out DIR] [--steps N] [--seed S] [--threads N]
          synthesise a workspace and a glass object, then compare as above (default out: rnerf-demo)
   bench  [--json] [--reps N] [--log2t N] [--threads N] [--model MODEL [--model MODEL] --data DIR]
@@ -185,6 +192,13 @@ pub struct TrainArgs {
     pub checkpoint_every: Option<u32>,
     /// A checkpoint to continue from with its own settings (`--resume`).
     pub resume: Option<PathBuf>,
+    /// Train on this many evenly spaced views of the split (`--scene-views`); all when absent.
+    pub scene_views: Option<usize>,
+    /// The background hints a residual model uses (`--prior`; default all).
+    pub prior: Option<crate::train::prior::Prior>,
+    /// The background's dataset, whose images at the scene's poses give the change maps
+    /// (`--background-data`; without it the background model is rendered at those poses).
+    pub background_data: Option<PathBuf>,
 }
 
 /// Arguments of `rnerf compare`.
@@ -198,8 +212,12 @@ pub struct CompareArgs {
     pub scenes: Vec<PathBuf>,
     /// Output folder (`--out`), created if missing.
     pub out: PathBuf,
-    /// Methods (`--methods`, default the paper's: dex, residual, residual-s).
+    /// Methods (`--methods`, default [`crate::compare::Method::defaults`]: dex, finetune,
+    /// residual-paper, residual).
     pub methods: Vec<crate::compare::Method>,
+    /// Train every method on this many evenly spaced scene views (`--scene-views`); the
+    /// background keeps all of its own.
+    pub scene_views: Option<usize>,
     /// Steps per method (`--steps`).
     pub steps: Option<u32>,
     /// Rays per step (`--rays`).
@@ -276,6 +294,9 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             "fixed-background",
             "checkpoint-every",
             "resume",
+            "scene-views",
+            "prior",
+            "background-data",
         ],
         "render" => &["model", "data", "out", "split", "depth", "m", "m-raw", "threads"],
         "eval" => &["model", "data", "split", "depth", "m", "m-raw", "crop", "limit", "json", "threads"],
@@ -294,6 +315,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             "m-raw",
             "m-sweep",
             "threads",
+            "scene-views",
         ],
         "demo" => &["out", "steps", "seed", "threads"],
         "bench" => &["json", "reps", "log2t", "threads", "model", "data"],
@@ -352,6 +374,9 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             random_bg: f.fixed_background.then_some(false),
             checkpoint_every: f.checkpoint_every,
             resume: f.resume.clone(),
+            scene_views: f.scene_views,
+            prior: f.prior_hints()?,
+            background_data: f.background_data.clone(),
         }),
         "render" => Command::Render {
             model: f.need_path("model", &command)?,
@@ -383,7 +408,8 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
                 f.scenes.clone()
             },
             out: f.need_path("out", &command)?,
-            methods: f.methods.clone().unwrap_or_else(crate::compare::Method::paper),
+            methods: f.methods.clone().unwrap_or_else(crate::compare::Method::defaults),
+            scene_views: f.scene_views,
             steps: f.steps,
             rays: f.rays,
             log2t: f.log2t,
@@ -450,6 +476,9 @@ struct Flags {
     eval_every: Option<u32>,
     checkpoint_every: Option<u32>,
     resume: Option<PathBuf>,
+    scene_views: Option<usize>,
+    prior: Option<crate::train::prior::Prior>,
+    background_data: Option<PathBuf>,
     /// Flags given, in order.
     given: Vec<String>,
 }
@@ -459,6 +488,28 @@ impl Flags {
         self.given.push(name.to_string());
         match name {
             "checkpoint-every" => self.checkpoint_every = Some(positive(p, name)?),
+            "scene-views" => self.scene_views = Some(positive(p, name)?),
+            "background-data" => self.background_data = Some(path(p, name)?),
+            "prior" => {
+                let s = text(p, name)?;
+                let mut h = crate::train::prior::Prior::NONE;
+                if s != "none" {
+                    for part in s.split(',') {
+                        match part {
+                            "warm-start" => h.warm_start = true,
+                            "region" => h.region = true,
+                            "focus" => h.focus = true,
+                            "all" => h = crate::train::prior::Prior::ALL,
+                            _ => {
+                                return Err(err(format!(
+                                    "--prior: '{part}' is not all, none, warm-start, region or focus"
+                                )))
+                            }
+                        }
+                    }
+                }
+                self.prior = Some(h);
+            }
             "resume" => self.resume = Some(path(p, name)?),
             "json" => self.json = true,
             "fixed-background" => self.fixed_background = true,
@@ -591,6 +642,16 @@ impl Flags {
             _ => self.models.last(),
         };
         v.cloned().ok_or_else(|| err(format!("{command}: --{name} is required (try 'rnerf help')")))
+    }
+
+    fn prior_hints(&self) -> Result<Option<crate::train::prior::Prior>, CliError> {
+        if self.background.is_none() && (self.prior.is_some() || self.background_data.is_some()) {
+            return Err(err("--prior / --background-data need --background (they configure a residual model)"));
+        }
+        if self.mix.as_deref() == Some("sum") && self.prior.is_some_and(|p| p.region) {
+            return Err(err("--prior region needs --mix mixnet (the region sets the Mixnet's β)"));
+        }
+        Ok(self.prior)
     }
 
     fn mix_kind(&self) -> Result<Option<crate::field::mix::MixKind>, CliError> {

@@ -44,7 +44,7 @@ fn compare_writes_the_table_curves_and_depth_sheets() {
         "--out",
         out_s,
         "--methods",
-        "dex,residual-shared,residual-s",
+        "dex,residual-paper-shared,residual-s",
         "--steps",
         "20",
         "--rays",
@@ -56,16 +56,19 @@ fn compare_writes_the_table_curves_and_depth_sheets() {
     ])
     .unwrap();
     let table = std::fs::read_to_string(out.join("table.md")).unwrap();
-    for label in ["NeRF (expected depth)", "Dex-NeRF", "Residual-NeRF (shared encoding)", "Residual-NeRF-S"] {
+    for label in ["NeRF (expected depth)", "Dex-NeRF", "Residual-NeRF (paper, shared encoding)", "Residual-NeRF-S"] {
         assert!(table.contains(label), "table lacks {label}:\n{table}");
     }
     let doc: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("table.json")).unwrap()).unwrap();
     let rows = doc["rows"].as_array().unwrap();
     let (sweep, main): (Vec<_>, Vec<_>) = rows.iter().partition(|r| r.get("threshold").is_some());
-    assert_eq!(main.len(), 4, "nerf-expected, dex, residual-shared, residual-s");
+    assert_eq!(main.len(), 4, "nerf-expected, dex, residual-paper-shared, residual-s");
     assert_eq!(sweep.len(), 3 * 4, "each trained method at the 4 thresholds of the default sweep");
     for r in rows {
-        assert!(r["mae"].as_f64().is_some_and(|v| v.is_finite() && v >= 0.0), "{r}");
+        for region in ["crop", "near_crop", "object", "crop_without_object"] {
+            assert!(r[region]["mae"].as_f64().is_some_and(|v| v.is_finite() && v >= 0.0), "{region}: {r}");
+            assert!(r[region]["see_through"].as_f64().is_some_and(|v| (0.0..=1.0).contains(&v)), "{region}: {r}");
+        }
         assert_eq!(r["scene"], "glass");
     }
     let csv = std::fs::read_to_string(out.join("curves.csv")).unwrap();
@@ -102,7 +105,11 @@ fn compare_writes_the_table_curves_and_depth_sheets() {
     ])
     .unwrap();
     assert!(!out2.join("background.safetensors").exists(), "a given background is not retrained");
-    assert!(out2.join("table.md").is_file());
+    // The background-aware method on a scene captured from other poses: change maps against the
+    // rendered background (no background image at the scene's poses).
+    let table = std::fs::read_to_string(out2.join("table.md")).unwrap();
+    assert!(table.contains("0/6 views against a background image"), "{table}");
+    assert!(table.contains("| glass | Residual-NeRF |"), "{table}");
 }
 
 #[test]

@@ -25,6 +25,19 @@ pub struct SceneData {
     pub test: EvalSet,
 }
 
+/// The background's own training images, for change maps against images at the same pose (none
+/// when the background dataset cannot be read: the prior then renders the background model).
+fn background_views(dir: &Path) -> Vec<View> {
+    let opts = LoadOptions { ground_truth: false, frame_type: Some(FrameType::Background), ..Default::default() };
+    match Dataset::load(dir, "train", &opts) {
+        Ok(d) => d.views,
+        Err(e) => {
+            eprintln!("rnerf compare: background images not read ({e}); change maps use the rendered background");
+            Vec::new()
+        }
+    }
+}
+
 /// A scene's training views (in the background's box) and its test views with ground truth.
 fn load_scene(dir: &Path, bg_box: Aabb, bg_path: &Path) -> Result<(Dataset, EvalSet), String> {
     let train_opts = LoadOptions { ground_truth: false, frame_type: Some(FrameType::Scene), ..Default::default() };
@@ -60,6 +73,10 @@ pub(super) fn run(a: &crate::cli::CompareArgs) -> Result<(), String> {
         Background::Model(m) => m.field.config().aabb,
         Background::Data(d) => d.aabb,
     };
+    let bg_views = match &background {
+        Background::Model(_) => background_views(&a.background),
+        Background::Data(d) => d.views.clone(),
+    };
     let mut scenes = Vec::new();
     let mut names = std::collections::HashSet::new();
     let mut any_alpha = matches!(&background, Background::Data(d) if d.had_alpha);
@@ -71,7 +88,11 @@ pub(super) fn run(a: &crate::cli::CompareArgs) -> Result<(), String> {
         while !names.insert(name.clone()) {
             name.push('_');
         }
-        scenes.push(SceneData { name, train: train.views, test });
+        let views = match a.scene_views {
+            Some(n) => crate::data::evenly_spaced(&train.views, n),
+            None => train.views,
+        };
+        scenes.push(SceneData { name, train: views, test });
     }
     std::fs::create_dir_all(&a.out).map_err(|e| format!("{}: --out: cannot create: {e}", a.out.display()))?;
     let (grid, train) = trainer_settings(a.steps, a.rays, a.log2t, a.seed, any_alpha);
@@ -82,6 +103,7 @@ pub(super) fn run(a: &crate::cli::CompareArgs) -> Result<(), String> {
         mixnet_grid: crate::field::mixnet::default_mixnet_grid(),
         m: a.m,
         m_sweep: a.m_sweep.clone(),
+        prior: Default::default(),
     };
     let isa = Isa::detect();
     eprintln!(
@@ -103,7 +125,7 @@ pub(super) fn run(a: &crate::cli::CompareArgs) -> Result<(), String> {
             nerf
         }
     };
-    compare_and_write(isa, &background, &scenes, &a.methods, &cfg, &a.out)?;
+    compare_and_write(isa, &background, &bg_views, &scenes, &a.methods, &cfg, &a.out)?;
     Ok(())
 }
 
@@ -121,6 +143,7 @@ pub fn train_background(isa: Isa, views: &[View], cfg: &CompareConfig) -> Result
 pub fn compare_and_write(
     isa: Isa,
     background: &Nerf,
+    bg_views: &[View],
     scenes: &[SceneData],
     methods: &[Method],
     cfg: &CompareConfig,
@@ -139,7 +162,7 @@ pub fn compare_and_write(
                 &format!("PSNR {:.2} dB  {:.0} samples/ray", -10.0 * (st.loss as f64).log10(), st.samples_per_ray),
             );
         };
-        let r = compare::run_scene(isa, &s.name, background, &s.train, &s.test, methods, cfg, &mut log)?;
+        let r = compare::run_scene(isa, &s.name, background, bg_views, &s.train, &s.test, methods, cfg, &mut log)?;
         let dir = out.join(&r.name);
         std::fs::create_dir_all(&dir).map_err(|e| format!("{}: cannot create: {e}", dir.display()))?;
         export::write(&dir.join("curves.png"), compare::curves_png(&r))?;
@@ -168,9 +191,13 @@ fn write_tables(results: &[SceneResult], cfg: &CompareConfig, out: &Path) -> Res
         .iter()
         .flat_map(|r| {
             r.methods.iter().flat_map(move |m| {
-                let row = |method: &str, e: &crate::eval::DepthErrors| {
-                    json!({"scene": r.name, "method": method, "mae": e.mae(), "rmse": e.rmse(),
-                           "hole_rate": e.hole_rate(), "train_seconds": m.seconds, "psnr": m.psnr})
+                let row = |method: &str, e: &crate::eval::DepthReport| {
+                    let mut x = e.to_json();
+                    x["scene"] = r.name.clone().into();
+                    x["method"] = method.into();
+                    x["train_seconds"] = m.seconds.into();
+                    x["psnr"] = m.psnr.into();
+                    x
                 };
                 let mut v = vec![row(m.method.name(), &m.threshold)];
                 for (th, e) in &m.sweep {
@@ -185,8 +212,19 @@ fn write_tables(results: &[SceneResult], cfg: &CompareConfig, out: &Path) -> Res
             })
         })
         .collect();
+    let priors: Vec<serde_json::Value> = results
+        .iter()
+        .filter_map(|r| {
+            r.prior.map(|p| {
+                json!({"scene": r.name, "changed_pixels": p.changed_pixels,
+            "matched_views": p.matched_views, "views": p.views, "region_cells": p.region_cells,
+            "region_volume": p.region_volume, "seconds": p.seconds})
+            })
+        })
+        .collect();
     let doc = json!({"steps": cfg.train.steps, "rays_per_step": cfg.train.rays_per_step, "seed": cfg.train.seed,
-                     "log2_table_size": cfg.field.grid.log2_table_size, "threshold": format!("{:?}", cfg.m), "rows": rows});
+                     "log2_table_size": cfg.field.grid.log2_table_size, "threshold": format!("{:?}", cfg.m),
+                     "near_limit": crate::eval::NEAR_LIMIT, "prior": format!("{:?}", cfg.prior), "priors": priors, "rows": rows});
     write_atomic(&out.join("table.json"), serde_json::to_string_pretty(&doc).expect("plain JSON").as_bytes())
 }
 
@@ -232,6 +270,7 @@ pub fn demo_config(steps: u32, seed: u64) -> CompareConfig {
         m: DensityThreshold::Sigma(crate::cli::DEFAULT_M),
         eval_every: (steps / 20).max(1),
         m_sweep: Vec::new(),
+        prior: Default::default(),
     }
 }
 
@@ -261,7 +300,8 @@ pub(super) fn demo(out: &Path, steps: Option<u32>, seed: Option<u64>) -> Result<
     );
     let background = train_background(isa, &bg.views, &cfg)?;
     let scenes = [SceneData { name: "glass".into(), train: scene.views, test: EvalSet::from_synth(&test) }];
-    compare_and_write(isa, &background, &scenes, &Method::paper(), &cfg, out)?;
+    let methods = [Method::Dex, Method::RESIDUAL_PAPER, Method::RESIDUAL];
+    compare_and_write(isa, &background, &bg.views, &scenes, &methods, &cfg, out)?;
     eprintln!(
         "rnerf demo: done in {:.1} s; look at {}",
         t0.elapsed().as_secs_f64(),

@@ -3,7 +3,7 @@
 use super::Progress;
 use crate::cli::DepthChoice;
 use crate::data::{Dataset, LoadOptions};
-use crate::eval::{crop_box, mse, psnr, CropRule, DepthErrors};
+use crate::eval::{crop_box, mse, psnr, CropRule, DepthErrors, DepthReport, NEAR_LIMIT};
 use crate::io::{load_model, LoadedModel};
 use crate::render::view::Scene;
 use crate::render::{FullOutputs, ViewRenderer};
@@ -17,6 +17,9 @@ use std::path::Path;
 pub struct EvalReport {
     /// Depth errors over all scored pixels (z-depth, metres).
     pub depth: DepthErrors,
+    /// The same prediction inside each frame's own crop, scored on the object mask, the near
+    /// crop (< `--limit`, default 1.5 m) and the crop without the object ([`DepthReport`]).
+    pub regions: DepthReport,
     /// Mean per-image PSNR (dB).
     pub psnr: f64,
     /// Frames evaluated.
@@ -38,7 +41,7 @@ impl EvalReport {
             "mae": num(self.depth.mae()), "rmse": num(self.depth.rmse()), "hole_rate": num(self.depth.hole_rate()),
             "psnr": num(self.psnr), "frames": self.frames, "frames_with_depth": self.frames_with_depth,
             "pixels": self.depth.pixels, "holes": self.depth.holes, "depth_kind": "z", "depth_unit": "m",
-            "depth_method": method,
+            "depth_method": method, "regions": self.regions.to_json(),
         })
     }
 }
@@ -57,6 +60,7 @@ pub fn evaluate<M: Model>(
     let m = depth.threshold();
     let mut renderer = ViewRenderer::<M>::new();
     let mut errors = DepthErrors::default();
+    let mut regions = DepthReport::default();
     let (mut psnr_sum, mut with_depth) = (0.0, 0);
     let (mut rgb, mut expected, mut threshold) = (Vec::new(), Vec::new(), Vec::new());
     for (i, (v, f)) in data.views.iter().zip(&data.frames).enumerate() {
@@ -71,12 +75,15 @@ pub fn evaluate<M: Model>(
         if let Some(gt) = &f.depth {
             let pred = if depth == DepthChoice::Expected { &expected } else { &threshold };
             errors.add_frame(pred, gt, k.width, crop_box(crop, k.width, k.height, f.crop), limit);
+            let frame_crop = crop_box(CropRule::Frame, k.width, k.height, f.crop);
+            regions.add_frame(pred, gt, f.mask.as_deref(), k.width, frame_crop, limit.unwrap_or(NEAR_LIMIT));
             with_depth += 1;
         }
         progress(i + 1);
     }
     EvalReport {
         depth: errors,
+        regions,
         psnr: psnr_sum / data.views.len() as f64,
         frames: data.views.len(),
         frames_with_depth: with_depth,
@@ -116,6 +123,21 @@ pub(super) fn run(
             100.0 * d.hole_rate(),
             report.psnr
         );
+        let (o, n) = (&report.regions.object, &report.regions.near);
+        if o.pixels > 0 {
+            println!(
+                "object mask: MAE {:.4} m  RMSE {:.4} m  holes {:.2}%  within 1 cm {:.1}%  within 2.5 cm {:.1}%  \
+                 see-through {:.1}%  floaters {:.1}%",
+                o.mae(),
+                o.rmse(),
+                100.0 * o.hole_rate(),
+                100.0 * o.within_1cm_rate(),
+                100.0 * o.within_2_5cm_rate(),
+                100.0 * o.see_through_rate(),
+                100.0 * o.floater_rate()
+            );
+        }
+        println!("near crop: MAE {:.4} m  RMSE {:.4} m", n.mae(), n.rmse());
     }
     Ok(())
 }

@@ -6,13 +6,14 @@ use crate::cli::TrainArgs;
 use crate::data::{AabbSource, Dataset, LoadOptions};
 use crate::encoding::HashGridConfig;
 use crate::field::mix::{DensityMix, MixKind};
-use crate::field::residual::{ResidualConfig, ResidualField, ResidualModel};
+use crate::field::residual::{ResidualConfig, ResidualModel};
 use crate::field::{Nerf, NerfConfig, NerfField};
 use crate::io::{
     load_checkpoint, load_model, save_checkpoint, save_model, views_fingerprint, write_atomic, LoadedModel, ModelFile,
 };
 use crate::render::Aabb;
 use crate::simd::Isa;
+use crate::train::prior::{residual_start, scene_prior, Prior, PriorConfig};
 use crate::train::trainer::{TrainConfig, Trainer};
 use signal_hook::consts::{SIGINT, SIGTERM};
 use std::fmt::Write as _;
@@ -138,6 +139,9 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
     if let (Some(bg), Some(p)) = (&background, &a.background) {
         adopt_background_box(&mut data, bg.field.config().aabb, p)?;
     }
+    if let Some(n) = a.scene_views {
+        data.views = crate::data::evenly_spaced(&data.views, n);
+    }
     describe_data(&data);
     let (grid, mut cfg) = trainer_settings(a.steps, a.rays, a.log2t, a.seed, data.had_alpha);
     let field = NerfConfig { grid, aabb: data.aabb };
@@ -162,10 +166,44 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
         (Some(bg), Some(bg_path)) => {
             let kind = a.mix.unwrap_or(MixKind::Mixnet(DensityMix::Raw));
             let mixnet = a.mixnet.unwrap_or_default();
-            eprintln!("rnerf train: residual model over {} ({kind:?}, Mixnet encoding {mixnet:?})", bg_path.display());
+            let hints = a.prior.unwrap_or(match kind {
+                MixKind::Mixnet(_) => Prior::ALL,
+                MixKind::Sum => Prior::NONE,
+            });
+            eprintln!(
+                "rnerf train: residual model over {} ({kind:?}, Mixnet encoding {mixnet:?}, background hints {hints:?})",
+                bg_path.display()
+            );
             extra.push(("background_file", bg_path.display().to_string()));
-            let model = ResidualField::new(bg, ResidualConfig { residual: field, kind, mixnet });
-            let trainer = Trainer::new(isa, &model, data.aabb, &data.views, &cfg);
+            extra.push(("train_prior", format!("{hints:?}")));
+            let pcfg = PriorConfig::default();
+            let prior = (hints != Prior::NONE).then(|| {
+                let bg_views = match &a.background_data {
+                    Some(dir) => {
+                        let opts = LoadOptions { ground_truth: false, ..Default::default() };
+                        Dataset::load(dir, "train", &opts).map(|d| d.views).map_err(|e| e.to_string())
+                    }
+                    None => Ok(Vec::new()),
+                }?;
+                let m = crate::render::DensityThreshold::Sigma(crate::cli::DEFAULT_M);
+                let p = scene_prior(isa, &bg, &bg_views, &data.views, cfg.background, m, &pcfg);
+                let changed = p.focus.len() as f64 / data.views.iter().map(|v| v.rgb.len()).sum::<usize>() as f64;
+                eprintln!(
+                    "rnerf train: background prior: {:.1}% of the pixels changed ({}/{} views against background \
+                     images), change region {} cells",
+                    100.0 * changed,
+                    p.matched_views,
+                    data.views.len(),
+                    p.region.count()
+                );
+                Ok::<_, String>(p)
+            });
+            let prior = prior.transpose()?;
+            let config = ResidualConfig { residual: field, kind, mixnet };
+            let start = residual_start(&bg, config, hints, prior.as_ref(), &cfg, &pcfg);
+            cfg.focus = start.focus;
+            let model = start.field;
+            let trainer = Trainer::starting_at(isa, &model, &data.views, &cfg, start.params, start.occupancy);
             drive(a, &model, trainer, &extra)
         }
         _ => {

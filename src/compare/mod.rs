@@ -18,16 +18,18 @@ pub mod figures;
 use crate::data::synth::SynthScene;
 use crate::data::Dataset;
 use crate::encoding::HashGridConfig;
-use crate::eval::{mse, psnr, DepthErrors};
+use crate::eval::{mse, psnr, DepthReport, NEAR_LIMIT};
 use crate::field::mix::{DensityMix, MixKind};
 use crate::field::mixnet::MixnetEncoding;
-use crate::field::residual::{ResidualConfig, ResidualField};
+use crate::field::residual::ResidualConfig;
 use crate::field::{Nerf, NerfConfig, NerfField};
 use crate::render::view::{RenderedView, Scene};
-use crate::render::{DensityThreshold, Intrinsics, ViewRenderer};
+use crate::render::{DensityThreshold, Intrinsics, OccupancyGrid, ViewRenderer};
 use crate::simd::Isa;
 use crate::train::model::Model;
-use crate::train::trainer::{train_model, StepStats, TrainConfig, TrainError, View};
+pub use crate::train::prior::Prior;
+use crate::train::prior::{residual_start, scene_prior, PriorConfig, ScenePrior};
+use crate::train::trainer::{train_model_from, StepStats, TrainConfig, TrainError, View};
 use std::fmt::Write as _;
 
 /// Test views with ground truth: z-depth per pixel (metres, NaN where unknown) and the scoring
@@ -40,6 +42,8 @@ pub struct EvalSet {
     pub depth: Vec<Vec<f32>>,
     /// Scoring crop per view.
     pub crops: Vec<[u32; 4]>,
+    /// Object mask per view (`None`: the frame has none; then nothing is scored as object).
+    pub masks: Vec<Option<Vec<bool>>>,
 }
 
 impl EvalSet {
@@ -59,7 +63,8 @@ impl EvalSet {
             depth.push(z);
             crops.push(f.crop.unwrap_or([0, 0, v.intrinsics.width, v.intrinsics.height]));
         }
-        Ok(EvalSet { views: d.views.clone(), depth, crops })
+        let masks = d.frames.iter().map(|f| f.mask.clone()).collect();
+        Ok(EvalSet { views: d.views.clone(), depth, crops, masks })
     }
 
     /// The views of a synthesised scene (crops where it has them, else whole images).
@@ -71,7 +76,8 @@ impl EvalSet {
             .map(|(i, v)| s.crops.get(i).copied().unwrap_or([0, 0, v.intrinsics.width, v.intrinsics.height]))
             .collect();
         let depth = s.depth.iter().map(|d| d.iter().map(|&z| if z.is_finite() { z } else { f32::NAN }).collect());
-        EvalSet { views: s.views.clone(), depth: depth.collect(), crops }
+        let masks = (0..s.views.len()).map(|i| s.masks.get(i).cloned()).collect();
+        EvalSet { views: s.views.clone(), depth: depth.collect(), crops, masks }
     }
 }
 
@@ -80,73 +86,104 @@ impl EvalSet {
 pub enum Method {
     /// A plain NeRF on the scene: "NeRF" (expected depth) and "Dex-NeRF" (threshold depth).
     Dex,
+    /// The background NeRF fine-tuned on the scene (its weights and occupancy grid as the start;
+    /// a continual update, as Evo-NeRF evolves one NeRF), threshold depth.
+    FineTune,
     /// Residual NeRF over the frozen background, mixed by `kind`; with `shared`, the Mixnet reads
-    /// the residual's encoding instead of its own grid.
+    /// the residual's encoding instead of its own grid; `prior` says which background hints it
+    /// uses ([`Prior::NONE`]: the paper's and the authors' method).
     Residual {
         /// Mixing rule.
         kind: MixKind,
         /// Mixnet encoding shared with the residual.
         shared: bool,
+        /// Background hints used.
+        prior: Prior,
     },
 }
 
-/// Every method, in table order.
-const ALL: [Method; 6] = [
-    Method::Dex,
-    Method::RESIDUAL,
-    Method::Residual { kind: MixKind::Mixnet(DensityMix::Activated), shared: false },
-    Method::Residual { kind: MixKind::Mixnet(DensityMix::Raw), shared: true },
-    Method::Residual { kind: MixKind::Mixnet(DensityMix::Activated), shared: true },
-    Method::RESIDUAL_S,
+const fn residual(kind: MixKind, shared: bool, prior: Prior) -> Method {
+    Method::Residual { kind, shared, prior }
+}
+
+const RAW: MixKind = MixKind::Mixnet(DensityMix::Raw);
+const ACTIVATED: MixKind = MixKind::Mixnet(DensityMix::Activated);
+
+/// Every method with its name (file names, json, `--methods`) and label (tables, plots), in
+/// table order.
+const ALL: [(Method, &str, &str); 12] = [
+    (Method::Dex, "dex", "Dex-NeRF"),
+    (Method::FineTune, "finetune", "Fine-tuned background"),
+    (Method::RESIDUAL, "residual", "Residual-NeRF"),
+    (
+        residual(RAW, false, Prior { warm_start: false, ..Prior::ALL }),
+        "residual-no-warm-start",
+        "Residual-NeRF (no warm start)",
+    ),
+    (residual(RAW, false, Prior { region: false, ..Prior::ALL }), "residual-no-region", "Residual-NeRF (no region)"),
+    (residual(RAW, false, Prior { focus: false, ..Prior::ALL }), "residual-no-focus", "Residual-NeRF (no focus)"),
+    (residual(ACTIVATED, false, Prior::ALL), "residual-activated", "Residual-NeRF (activated mix)"),
+    (Method::RESIDUAL_PAPER, "residual-paper", "Residual-NeRF (paper)"),
+    (residual(ACTIVATED, false, Prior::NONE), "residual-paper-activated", "Residual-NeRF (paper, activated mix)"),
+    (residual(RAW, true, Prior::NONE), "residual-paper-shared", "Residual-NeRF (paper, shared encoding)"),
+    (
+        residual(ACTIVATED, true, Prior::NONE),
+        "residual-paper-activated-shared",
+        "Residual-NeRF (paper, activated, shared)",
+    ),
+    (Method::RESIDUAL_S, "residual-s", "Residual-NeRF-S"),
 ];
 
 impl Method {
-    /// Residual-NeRF with this crate's defaults (raw density mix, the Mixnet's own grid).
-    pub const RESIDUAL: Method = Method::Residual { kind: MixKind::Mixnet(DensityMix::Raw), shared: false };
+    /// The background-aware Residual-NeRF (raw density mix, the Mixnet's own grid, every
+    /// background hint): the crate's default residual method.
+    pub const RESIDUAL: Method = residual(RAW, false, Prior::ALL);
+    /// Residual-NeRF as the paper and the authors' code define it (no background hints).
+    pub const RESIDUAL_PAPER: Method = residual(RAW, false, Prior::NONE);
     /// Residual-NeRF-S (paper Eq. 6).
-    pub const RESIDUAL_S: Method = Method::Residual { kind: MixKind::Sum, shared: false };
+    pub const RESIDUAL_S: Method = residual(MixKind::Sum, false, Prior::NONE);
 
-    /// (name in file names, json and `--methods`; label in tables and plots).
-    fn name_and_label(&self) -> (&'static str, &'static str) {
-        use DensityMix::{Activated, Raw};
-        match self {
-            Method::Dex => ("dex", "Dex-NeRF"),
-            Method::Residual { kind: MixKind::Sum, .. } => ("residual-s", "Residual-NeRF-S"),
-            Method::Residual { kind: MixKind::Mixnet(Raw), shared: false } => ("residual", "Residual-NeRF"),
-            Method::Residual { kind: MixKind::Mixnet(Activated), shared: false } => {
-                ("residual-activated", "Residual-NeRF (activated mix)")
-            }
-            Method::Residual { kind: MixKind::Mixnet(Raw), shared: true } => {
-                ("residual-shared", "Residual-NeRF (shared encoding)")
-            }
-            Method::Residual { kind: MixKind::Mixnet(Activated), shared: true } => {
-                ("residual-activated-shared", "Residual-NeRF (activated, shared)")
-            }
-        }
+    fn entry(&self) -> &'static (Method, &'static str, &'static str) {
+        ALL.iter().find(|e| e.0 == *self).expect("every method is listed")
     }
 
     /// The name used in file names, json and `--methods`.
     pub fn name(&self) -> &'static str {
-        self.name_and_label().0
+        self.entry().1
     }
 
     /// The method called `name` (see [`Method::name`]).
     pub fn parse(name: &str) -> Option<Method> {
-        ALL.into_iter().find(|m| m.name() == name)
+        ALL.iter().find(|e| e.1 == name).map(|e| e.0)
     }
 
     /// Every method's name, for help and errors.
     pub fn names() -> String {
-        ALL.iter().map(|m| m.name()).collect::<Vec<_>>().join(", ")
+        ALL.iter().map(|e| e.1).collect::<Vec<_>>().join(", ")
     }
 
-    /// The paper's methods: Dex-NeRF (with NeRF's expected depth), Residual-NeRF, Residual-NeRF-S.
+    /// The paper's methods: Dex-NeRF (with NeRF's expected depth), Residual-NeRF as published,
+    /// Residual-NeRF-S.
     pub fn paper() -> Vec<Method> {
-        vec![Method::Dex, Method::RESIDUAL, Method::RESIDUAL_S]
+        vec![Method::Dex, Method::RESIDUAL_PAPER, Method::RESIDUAL_S]
+    }
+
+    /// The default comparison: the baselines (Dex-NeRF, the fine-tuned background), the paper's
+    /// Residual-NeRF and the background-aware one.
+    pub fn defaults() -> Vec<Method> {
+        vec![Method::Dex, Method::FineTune, Method::RESIDUAL_PAPER, Method::RESIDUAL]
     }
 
     fn label(&self) -> &'static str {
-        self.name_and_label().1
+        self.entry().2
+    }
+
+    /// The background hints the method uses (none for the non-residual methods).
+    pub fn prior(&self) -> Prior {
+        match self {
+            Method::Residual { prior, .. } => *prior,
+            _ => Prior::NONE,
+        }
     }
 }
 
@@ -166,6 +203,8 @@ pub struct CompareConfig {
     /// Further thresholds at which the final models are scored in the crops (the `m` sweep
     /// that chooses the default).
     pub m_sweep: Vec<DensityThreshold>,
+    /// The background prior's settings (methods with a [`Prior`]).
+    pub prior: PriorConfig,
 }
 
 /// A point of a speed curve: threshold-depth errors inside the test crops after `step` steps.
@@ -175,8 +214,8 @@ pub struct CurvePoint {
     pub step: u32,
     /// Training seconds so far (evaluation excluded).
     pub seconds: f64,
-    /// Errors inside the crops.
-    pub errors: DepthErrors,
+    /// Errors inside the crops (every region).
+    pub errors: DepthReport,
 }
 
 /// One trained method on one scene.
@@ -188,16 +227,34 @@ pub struct MethodResult {
     pub seconds: f64,
     /// Threshold-depth errors after every `eval_every` steps and at the end.
     pub curve: Vec<CurvePoint>,
-    /// Final threshold-depth errors inside the crops.
-    pub threshold: DepthErrors,
-    /// Final expected-depth errors inside the crops.
-    pub expected: DepthErrors,
+    /// Final threshold-depth errors (every region).
+    pub threshold: DepthReport,
+    /// Final expected-depth errors (every region).
+    pub expected: DepthReport,
     /// Mean test PSNR (dB) over the whole images.
     pub psnr: f64,
     /// Final renders of the test views.
     pub renders: Vec<RenderedView>,
     /// Final threshold-depth errors in the crops at each threshold of [`CompareConfig::m_sweep`].
-    pub sweep: Vec<(DensityThreshold, DepthErrors)>,
+    pub sweep: Vec<(DensityThreshold, DepthReport)>,
+}
+
+/// What the background prior found on one scene.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PriorSummary {
+    /// Share of the training pixels marked changed.
+    pub changed_pixels: f64,
+    /// Training views compared with a background image at the same pose (the rest against
+    /// the rendered background).
+    pub matched_views: usize,
+    /// Training views.
+    pub views: usize,
+    /// Cells in the change region.
+    pub region_cells: usize,
+    /// The region's volume (scene units cubed).
+    pub region_volume: f64,
+    /// Seconds to compute the prior (change maps, the background's depth, the vote).
+    pub seconds: f64,
 }
 
 /// All methods on one scene.
@@ -207,6 +264,8 @@ pub struct SceneResult {
     pub name: String,
     /// In the order the methods were given.
     pub methods: Vec<MethodResult>,
+    /// The background prior, when a method used it.
+    pub prior: Option<PriorSummary>,
 }
 
 /// The intrinsics of the sub-window `crop` of `k` (the same rays as those pixels of `k`).
@@ -220,7 +279,8 @@ pub fn crop_intrinsics(k: &Intrinsics, crop: [u32; 4]) -> Intrinsics {
     }
 }
 
-/// Threshold-depth errors of `scene` inside the crops of `test` (renders the crops only).
+/// Threshold-depth errors of `scene` inside the crops of `test`, every region (renders the
+/// crops only).
 pub fn crop_errors<M: Model>(
     isa: Isa,
     scene: &Scene<'_, M>,
@@ -229,18 +289,25 @@ pub fn crop_errors<M: Model>(
     renderer: &mut ViewRenderer<M>,
     z: &mut Vec<f32>,
     truth: &mut Vec<f32>,
-) -> DepthErrors {
-    let mut e = DepthErrors::default();
-    for ((v, gt), &crop) in test.views.iter().zip(&test.depth).zip(&test.crops) {
+) -> DepthReport {
+    let mut e = DepthReport::default();
+    let mut mask = Vec::new();
+    for (((v, gt), &crop), full_mask) in test.views.iter().zip(&test.depth).zip(&test.crops).zip(&test.masks) {
         let k = crop_intrinsics(&v.intrinsics, crop);
         z.resize((k.width * k.height) as usize, 0.0);
         renderer.depth(isa, scene, &k, &v.pose, m, z);
         truth.clear();
+        mask.clear();
         for y in crop[1]..crop[3] {
             let row = (y * v.intrinsics.width) as usize;
-            truth.extend_from_slice(&gt[row + crop[0] as usize..row + crop[2] as usize]);
+            let r = row + crop[0] as usize..row + crop[2] as usize;
+            truth.extend_from_slice(&gt[r.clone()]);
+            if let Some(fm) = full_mask {
+                mask.extend_from_slice(&fm[r]);
+            }
         }
-        e.add_frame(z, truth, k.width, [0, 0, k.width, k.height], None);
+        let mask = full_mask.as_ref().map(|_| &mask[..]);
+        e.add_frame(z, truth, mask, k.width, [0, 0, k.width, k.height], NEAR_LIMIT);
     }
     e
 }
@@ -253,11 +320,14 @@ fn gcd(a: u32, b: u32) -> u32 {
     }
 }
 
-/// Trains `model` on `train` with the curve observer, then renders and scores every test view.
+/// Trains `model` on `train` (from `start` when given) with the curve observer, then renders
+/// and scores every test view.
+#[allow(clippy::too_many_arguments)]
 fn run_method<M: Model>(
     isa: Isa,
     method: Method,
     model: &M,
+    start: Option<(M::Params, OccupancyGrid)>,
     train: &[View],
     test: &EvalSet,
     cfg: &CompareConfig,
@@ -270,7 +340,7 @@ fn run_method<M: Model>(
     let every = if cfg.eval_every == 0 { steps } else { cfg.eval_every };
     let log_every = gcd(10, every);
     let (params, occupancy) =
-        train_model(isa, model, cfg.field.aabb, train, &cfg.train, log_every, |s, params, occupancy| {
+        train_model_from(isa, model, cfg.field.aabb, train, &cfg.train, start, log_every, |s, params, occupancy| {
             log(method, &s);
             let done = s.step + 1;
             if done % every == 0 || done == steps {
@@ -281,14 +351,14 @@ fn run_method<M: Model>(
         })?;
     let seconds = curve.last().map_or(0.0, |p| p.seconds);
     let scene = Scene { model, params: &params, occupancy: &occupancy };
-    let (mut threshold, mut expected) = (DepthErrors::default(), DepthErrors::default());
+    let (mut threshold, mut expected) = (DepthReport::default(), DepthReport::default());
     let mut psnr_sum = 0.0;
     let mut renders = Vec::new();
-    for ((v, gt), &crop) in test.views.iter().zip(&test.depth).zip(&test.crops) {
+    for (((v, gt), &crop), mask) in test.views.iter().zip(&test.depth).zip(&test.crops).zip(&test.masks) {
         let k = &v.intrinsics;
         let r = renderer.render(isa, &scene, k, &v.pose, cfg.train.background, cfg.m);
-        threshold.add_frame(&r.threshold_z, gt, k.width, crop, None);
-        expected.add_frame(&r.expected_z, gt, k.width, crop, None);
+        threshold.add_frame(&r.threshold_z, gt, mask.as_deref(), k.width, crop, NEAR_LIMIT);
+        expected.add_frame(&r.expected_z, gt, mask.as_deref(), k.width, crop, NEAR_LIMIT);
         psnr_sum += psnr(mse(&r.rgb, &v.rgb));
         renders.push(r);
     }
@@ -302,46 +372,74 @@ fn run_method<M: Model>(
 }
 
 /// Trains and scores every method of `methods` on one scene over the frozen `background`.
-/// `log` sees every method's training progress. A method whose training fails ends the scene
-/// with an error naming the scene and method.
+/// `bg_views` are the background's own training images (matched by pose for the change maps;
+/// may be empty). `log` sees every method's training progress. A method whose training fails
+/// ends the scene with an error naming the scene and method.
+#[allow(clippy::too_many_arguments)]
 pub fn run_scene(
     isa: Isa,
     name: &str,
     background: &Nerf,
+    bg_views: &[View],
     train: &[View],
     test: &EvalSet,
     methods: &[Method],
     cfg: &CompareConfig,
     log: &mut dyn FnMut(Method, &StepStats),
 ) -> Result<SceneResult, String> {
+    let mut prior: Option<(ScenePrior, PriorSummary)> = None;
+    if methods.iter().any(|m| m.prior() != Prior::NONE) {
+        let t0 = std::time::Instant::now();
+        let p = scene_prior(isa, background, bg_views, train, cfg.train.background, cfg.m, &cfg.prior);
+        let pixels: usize = train.iter().map(|v| v.rgb.len()).sum();
+        let cell = background.occupancy.aabb().size() / background.occupancy.config().resolution as f32;
+        let summary = PriorSummary {
+            changed_pixels: p.focus.len() as f64 / pixels.max(1) as f64,
+            matched_views: p.matched_views,
+            views: train.len(),
+            region_cells: p.region.count(),
+            region_volume: p.region.count() as f64 * (cell.x * cell.y * cell.z) as f64,
+            seconds: t0.elapsed().as_secs_f64(),
+        };
+        prior = Some((p, summary));
+    }
     let results = methods
         .iter()
         .map(|&method| {
             match method {
-                Method::Dex => run_method(isa, method, &NerfField::new(cfg.field.clone()), train, test, cfg, log),
-                Method::Residual { kind, shared } => {
+                Method::Dex => run_method(isa, method, &NerfField::new(cfg.field.clone()), None, train, test, cfg, log),
+                Method::FineTune => {
+                    let field = NerfField::new(background.field.config().clone());
+                    let start = Some((background.params.clone(), background.occupancy.clone()));
+                    run_method(isa, method, &field, start, train, test, cfg, log)
+                }
+                Method::Residual { kind, shared, prior: hints } => {
                     let mixnet = if shared { MixnetEncoding::Shared } else { MixnetEncoding::Own(cfg.mixnet_grid) };
                     let config = ResidualConfig { residual: cfg.field.clone(), kind, mixnet };
-                    let field = ResidualField::new(background.clone(), config);
-                    run_method(isa, method, &field, train, test, cfg, log)
+                    let p = prior.as_ref().map(|p| &p.0);
+                    let start = residual_start(background, config, hints, p, &cfg.train, &cfg.prior);
+                    let mut mcfg = cfg.clone();
+                    mcfg.train.focus = start.focus;
+                    let init = Some((start.params, start.occupancy));
+                    run_method(isa, method, &start.field, init, train, test, &mcfg, log)
                 }
             }
             .map_err(|e| format!("{name}: {}: {e}", method.name()))
         })
         .collect::<Result<_, _>>()?;
-    Ok(SceneResult { name: name.to_string(), methods: results })
+    Ok(SceneResult { name: name.to_string(), methods: results, prior: prior.map(|p| p.1) })
 }
 
-/// Training seconds after which `curve` first scores an RMSE ≤ `target` (None: never).
-pub fn seconds_to_reach(curve: &[CurvePoint], target: f64) -> Option<f64> {
-    curve.iter().find(|p| p.errors.rmse() <= target).map(|p| p.seconds)
+/// The first curve point whose object-mask MAE is ≤ `target` (None: never).
+pub fn first_reaching(curve: &[CurvePoint], target: f64) -> Option<&CurvePoint> {
+    curve.iter().find(|p| p.errors.object.mae() <= target)
 }
 
 /// A table row: label, errors, training seconds, PSNR.
 struct Row<'a> {
     scene: &'a str,
     label: &'static str,
-    errors: DepthErrors,
+    errors: DepthReport,
     seconds: f64,
     psnr: f64,
 }
@@ -358,69 +456,114 @@ fn rows(r: &SceneResult) -> Vec<Row<'_>> {
     out
 }
 
-/// Mean over scenes of a method's final threshold RMSE and MAE (None when a scene lacks it).
+/// Mean over scenes of a method's final threshold-depth object-mask MAE and near-crop RMSE
+/// (None when a scene lacks the method).
 pub fn mean_errors(results: &[SceneResult], method: Method) -> Option<(f64, f64)> {
     let mut acc = (0.0, 0.0);
     for r in results {
         let m = r.methods.iter().find(|m| m.method == method)?;
-        acc.0 += m.threshold.rmse();
-        acc.1 += m.threshold.mae();
+        acc.0 += m.threshold.object.mae();
+        acc.1 += m.threshold.near.rmse();
     }
     let n = results.len().max(1) as f64;
     Some((acc.0 / n, acc.1 / n))
 }
 
-/// The comparison table (Markdown): per scene and method MAE, RMSE, holes, training time and
-/// PSNR; the mean over scenes per method; and the ratios the paper reports (Residual-NeRF over
-/// Dex-NeRF) with the time Residual-NeRF takes to reach Dex-NeRF's final RMSE.
+const HEADER: &str = "| scene | method | object MAE (m) | object RMSE (m) | object holes | ≤ 1 cm | ≤ 2.5 cm | \
+see-through | floaters | near-crop MAE (m) | near-crop RMSE (m) | crop w/o object MAE (m) | crop RMSE (m) | train (s) | test PSNR (dB) |";
+
+fn pct(x: f64) -> String {
+    format!("{:.1}%", 100.0 * x)
+}
+
+fn row_cells(e: &DepthReport) -> [f64; 11] {
+    let o = &e.object;
+    [
+        o.mae(),
+        o.rmse(),
+        o.hole_rate(),
+        o.within_1cm_rate(),
+        o.within_2_5cm_rate(),
+        o.see_through_rate(),
+        o.floater_rate(),
+        e.near.mae(),
+        e.near.rmse(),
+        e.rest.mae(),
+        e.crop.rmse(),
+    ]
+}
+
+fn write_row(s: &mut String, scene: &str, label: &str, c: &[f64; 11], seconds: f64, psnr: f64) {
+    let _ = writeln!(
+        s,
+        "| {scene} | {label} | {:.4} | {:.4} | {} | {} | {} | {} | {} | {:.4} | {:.4} | {:.4} | {:.4} | {seconds:.1} | {psnr:.2} |",
+        c[0],
+        c[1],
+        pct(c[2]),
+        pct(c[3]),
+        pct(c[4]),
+        pct(c[5]),
+        pct(c[6]),
+        c[7],
+        c[8],
+        c[9],
+        c[10]
+    );
+}
+
+/// The comparison table (Markdown): per scene and method the object-mask figures (MAE, RMSE,
+/// holes, shares within 1 and 2.5 cm, see-through and floater rates), the near crop's MAE and
+/// RMSE, the crop without the object, the whole crop's RMSE (the paper's figure), training time
+/// and PSNR; the mean over scenes per method; each method's ratios to Dex-NeRF; and the time each
+/// method takes to reach Dex-NeRF's final object-mask MAE.
 pub fn table(results: &[SceneResult]) -> String {
     let mut s = String::new();
-    let _ = writeln!(s, "| scene | method | depth MAE (m) | depth RMSE (m) | holes | train (s) | test PSNR (dB) |");
-    let _ = writeln!(s, "|---|---|---|---|---|---|---|");
+    let _ = writeln!(s, "{HEADER}");
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for r in results {
         for row in rows(r) {
-            let _ = writeln!(
-                s,
-                "| {} | {} | {:.4} | {:.4} | {:.1}% | {:.1} | {:.2} |",
-                row.scene,
-                row.label,
-                row.errors.mae(),
-                row.errors.rmse(),
-                100.0 * row.errors.hole_rate(),
-                row.seconds,
-                row.psnr
-            );
+            write_row(&mut s, row.scene, row.label, &row_cells(&row.errors), row.seconds, row.psnr);
         }
     }
     if results.len() > 1 {
         let n = results.len() as f64;
         let all: Vec<Vec<Row<'_>>> = results.iter().map(rows).collect();
         for (i, row) in all[0].iter().enumerate() {
-            let (mut mae, mut rmse, mut holes, mut secs, mut ps) = (0.0, 0.0, 0.0, 0.0, 0.0);
+            let (mut c, mut secs, mut ps) = ([0.0; 11], 0.0, 0.0);
             for r in &all {
                 let x = &r[i];
-                (mae, rmse, holes) = (mae + x.errors.mae(), rmse + x.errors.rmse(), holes + x.errors.hole_rate());
-                (secs, ps) = (secs + x.seconds, ps + x.psnr);
+                c.iter_mut().zip(row_cells(&x.errors)).for_each(|(a, b)| *a += b / n);
+                (secs, ps) = (secs + x.seconds / n, ps + x.psnr / n);
             }
+            write_row(&mut s, "**mean**", row.label, &c, secs, ps);
+        }
+    }
+    for r in results {
+        if let Some(p) = &r.prior {
             let _ = writeln!(
                 s,
-                "| **mean** | {} | {:.4} | {:.4} | {:.1}% | {:.1} | {:.2} |",
-                row.label,
-                mae / n,
-                rmse / n,
-                100.0 * holes / n,
-                secs / n,
-                ps / n
+                "\n{}: background prior: {} of the training pixels changed ({}/{} views against a background image at \
+                 the same pose, the rest against the rendered background); change region {} cells ({:.4} m³); {:.1} s",
+                r.name,
+                pct(p.changed_pixels),
+                p.matched_views,
+                p.views,
+                p.region_cells,
+                p.region_volume,
+                p.seconds
             );
         }
     }
     s.push_str(&sweep_table(results));
     let dex = mean_errors(results, Method::Dex);
-    for method in ALL.into_iter().skip(1) {
+    let methods: Vec<Method> =
+        results.first().map(|r| r.methods.iter().map(|m| m.method).collect()).unwrap_or_default();
+    let _ = writeln!(s);
+    for &method in methods.iter().filter(|&&m| m != Method::Dex) {
         if let (Some(d), Some(r)) = (dex, mean_errors(results, method)) {
             let _ = writeln!(
                 s,
-                "\n{} / Dex-NeRF (mean over scenes): RMSE {:.2}x, MAE {:.2}x",
+                "{} / Dex-NeRF (mean over scenes): object MAE {:.2}x, near-crop RMSE {:.2}x",
                 method.label(),
                 r.0 / d.0,
                 r.1 / d.1
@@ -428,31 +571,25 @@ pub fn table(results: &[SceneResult]) -> String {
         }
     }
     for r in results {
-        let (Some(d), Some(res)) = (
-            r.methods.iter().find(|m| m.method == Method::Dex),
-            r.methods.iter().find(|m| m.method == Method::RESIDUAL),
-        ) else {
-            continue;
-        };
-        let target = d.threshold.rmse();
-        match seconds_to_reach(&res.curve, target) {
-            Some(t) => {
-                let _ = writeln!(
+        let Some(d) = r.methods.iter().find(|m| m.method == Method::Dex) else { continue };
+        let target = d.threshold.object.mae();
+        let _ = writeln!(
+            s,
+            "\n{}: time to Dex-NeRF's final object MAE {target:.4} m (Dex-NeRF: {:.1} s):",
+            r.name, d.seconds
+        );
+        for m in r.methods.iter().filter(|m| m.method != Method::Dex) {
+            let _ = match first_reaching(&m.curve, target) {
+                Some(p) => writeln!(
                     s,
-                    "{}: Residual-NeRF reaches Dex-NeRF's final RMSE {target:.4} m after {t:.1} s = {:.2}x of Dex-NeRF's {:.1} s",
-                    r.name,
-                    t / d.seconds,
-                    d.seconds
-                );
-            }
-            None => {
-                let _ = writeln!(
-                    s,
-                    "{}: Residual-NeRF does not reach Dex-NeRF's final RMSE {target:.4} m (its final: {:.4} m)",
-                    r.name,
-                    res.threshold.rmse()
-                );
-            }
+                    "- {}: step {}, {:.1} s = {:.2}x of Dex-NeRF's time",
+                    m.method.label(),
+                    p.step,
+                    p.seconds,
+                    p.seconds / d.seconds
+                ),
+                None => writeln!(s, "- {}: not reached (final {:.4} m)", m.method.label(), m.threshold.object.mae()),
+            };
         }
     }
     s
@@ -474,46 +611,60 @@ fn sweep_table(results: &[SceneResult]) -> String {
         return s;
     }
     let _ = writeln!(s, "\nThreshold sweep (mean over {} scene(s), same trained models):\n", results.len());
-    let _ = writeln!(s, "| method | threshold | depth MAE (m) | depth RMSE (m) | holes |");
-    let _ = writeln!(s, "|---|---|---|---|---|");
+    let _ = writeln!(s, "| method | threshold | object MAE (m) | object holes | near-crop RMSE (m) | crop MAE (m) |");
+    let _ = writeln!(s, "|---|---|---|---|---|---|");
     let n = results.len() as f64;
     for (k, m) in first.methods.iter().enumerate() {
         for (j, (th, _)) in m.sweep.iter().enumerate() {
-            let (mut mae, mut rmse, mut holes) = (0.0, 0.0, 0.0);
+            let mut c = [0.0; 4];
             for r in results {
                 let e = &r.methods[k].sweep[j].1;
-                (mae, rmse, holes) = (mae + e.mae(), rmse + e.rmse(), holes + e.hole_rate());
+                let x = [e.object.mae(), e.object.hole_rate(), e.near.rmse(), e.crop.mae()];
+                c.iter_mut().zip(x).for_each(|(a, b)| *a += b / n);
             }
             let _ = writeln!(
                 s,
-                "| {} | {} | {:.4} | {:.4} | {:.1}% |",
+                "| {} | {} | {:.4} | {} | {:.4} | {:.4} |",
                 m.method.label(),
                 threshold_name(*th),
-                mae / n,
-                rmse / n,
-                100.0 * holes / n
+                c[0],
+                pct(c[1]),
+                c[2],
+                c[3]
             );
         }
     }
     s
 }
 
-/// The speed curves of one scene as CSV: `scene,method,step,seconds,mae,rmse,hole_rate`.
+/// The speed curves as CSV: `scene,method,step,seconds` then MAE, RMSE and hole rate of the
+/// object, the near crop and the whole crop, and the object's see-through and floater rates.
 pub fn curves_csv(results: &[SceneResult]) -> String {
-    let mut s = String::from("scene,method,step,seconds,mae,rmse,hole_rate\n");
+    let mut s = String::from(
+        "scene,method,step,seconds,object_mae,object_rmse,object_holes,object_see_through,object_floaters,\
+         near_mae,near_rmse,crop_mae,crop_rmse,crop_holes\n",
+    );
     for r in results {
         for m in &r.methods {
             for p in &m.curve {
+                let (o, n, c) = (&p.errors.object, &p.errors.near, &p.errors.crop);
                 let _ = writeln!(
                     s,
-                    "{},{},{},{:.3},{:.6},{:.6},{:.6}",
+                    "{},{},{},{:.3},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6}",
                     r.name,
                     m.method.name(),
                     p.step,
                     p.seconds,
-                    p.errors.mae(),
-                    p.errors.rmse(),
-                    p.errors.hole_rate()
+                    o.mae(),
+                    o.rmse(),
+                    o.hole_rate(),
+                    o.see_through_rate(),
+                    o.floater_rate(),
+                    n.mae(),
+                    n.rmse(),
+                    c.mae(),
+                    c.rmse(),
+                    c.hole_rate()
                 );
             }
         }
@@ -539,14 +690,14 @@ pub fn curves_png(r: &SceneResult) -> Result<Vec<u8>, String> {
     };
     let step = |p: &CurvePoint| p.step as f64;
     let secs = |p: &CurvePoint| p.seconds;
-    let rmse = |p: &CurvePoint| p.errors.rmse();
-    let mae = |p: &CurvePoint| p.errors.mae();
+    let rmse = |p: &CurvePoint| p.errors.near.rmse();
+    let mae = |p: &CurvePoint| p.errors.object.mae();
     let (w, h) = (480, 300);
     let panels = [
-        plot(&format!("{}: depth RMSE (m)", r.name), "steps", &series(step, rmse), w, h),
-        plot(&format!("{}: depth RMSE (m)", r.name), "seconds", &series(secs, rmse), w, h),
-        plot(&format!("{}: depth MAE (m)", r.name), "steps", &series(step, mae), w, h),
-        plot(&format!("{}: depth MAE (m)", r.name), "seconds", &series(secs, mae), w, h),
+        plot(&format!("{}: object MAE (m)", r.name), "steps", &series(step, mae), w, h),
+        plot(&format!("{}: object MAE (m)", r.name), "seconds", &series(secs, mae), w, h),
+        plot(&format!("{}: near-crop RMSE (m)", r.name), "steps", &series(step, rmse), w, h),
+        plot(&format!("{}: near-crop RMSE (m)", r.name), "seconds", &series(secs, rmse), w, h),
     ];
     crate::io::export::png_bytes(figures::grid(&panels, 2))
 }
@@ -567,8 +718,10 @@ pub fn depth_sheet_png(r: &SceneResult, test: &EvalSet, i: usize) -> Result<Vec<
         }
         panels.push((m.method.name(), Panel::Depth(&v.threshold_z)));
     }
+    // β of the default residual method, else of the first one with a Mixnet.
     let with_beta = |m: &&MethodResult| matches!(m.method, Method::Residual { kind: MixKind::Mixnet(_), .. });
-    if let Some(m) = r.methods.iter().find(with_beta) {
+    let shown = r.methods.iter().find(|m| m.method == Method::RESIDUAL).or_else(|| r.methods.iter().find(with_beta));
+    if let Some(m) = shown {
         panels.push(("beta", Panel::Gray(&m.renders[i].beta)));
     }
     crate::io::export::png_bytes(figures::depth_sheet(&panels, k.width, k.height, test.crops[i], near, far))
@@ -577,11 +730,13 @@ pub fn depth_sheet_png(r: &SceneResult, test: &EvalSet, i: usize) -> Result<Vec<
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::eval::DepthErrors;
 
     #[test]
     fn method_names_round_trip() {
-        for m in ALL {
-            assert_eq!(Method::parse(m.name()), Some(m));
+        for (m, name, _) in ALL {
+            assert_eq!(Method::parse(name), Some(m));
+            assert_eq!(m.name(), name);
         }
         assert_eq!(Method::parse("nerf"), None);
     }
@@ -602,13 +757,12 @@ mod tests {
 
     #[test]
     fn time_to_reach_is_the_first_point_at_or_below_the_target() {
-        let pt = |step, seconds, err: f64| CurvePoint {
-            step,
-            seconds,
-            errors: DepthErrors { abs_sum: err, sq_sum: err * err, pixels: 1, holes: 0 },
+        let pt = |step, seconds, err: f64| {
+            let object = DepthErrors { abs_sum: err, sq_sum: err * err, pixels: 1, ..Default::default() };
+            CurvePoint { step, seconds, errors: DepthReport { object, ..Default::default() } }
         };
         let curve = [pt(10, 1.0, 0.5), pt(20, 2.0, 0.3), pt(30, 3.0, 0.35), pt(40, 4.0, 0.1)];
-        assert_eq!(seconds_to_reach(&curve, 0.3), Some(2.0));
-        assert_eq!(seconds_to_reach(&curve, 0.05), None);
+        assert_eq!(first_reaching(&curve, 0.3).map(|p| p.step), Some(20));
+        assert!(first_reaching(&curve, 0.05).is_none());
     }
 }

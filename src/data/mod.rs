@@ -17,3 +17,12 @@ pub mod workspace;
 pub use dataset::{aabb_from_cameras, AabbSource, Dataset, FrameInfo, LoadOptions};
 pub use error::{DataError, DataReport};
 pub use transforms::{DepthKind, FrameType};
+
+/// `n` evenly spaced items of `items` (indices `⌊i · len / n⌋`; all of them when `n ≥ len`): the
+/// views a robot in a hurry takes (`--scene-views`).
+pub fn evenly_spaced<T: Clone>(items: &[T], n: usize) -> Vec<T> {
+    if n >= items.len() {
+        return items.to_vec();
+    }
+    (0..n).map(|i| items[i * items.len() / n].clone()).collect()
+}

@@ -10,6 +10,7 @@
 
 pub mod mix;
 pub mod mixnet;
+pub mod region;
 pub mod residual;
 
 use crate::encoding::{sh4, HashGrid, HashGridConfig, HashGridParams, SH4_COEFFS};

@@ -5,6 +5,7 @@
 
 use super::mix::{mix_backward_rows, mix_forward, MixInput, MixKind, MixOutput};
 use super::mixnet::{Mixnet, MixnetChunk, MixnetContext, MixnetEncoding, MixnetGrads, MixnetParams};
+use super::region::ChangeRegion;
 use super::{FieldChunk, FieldContext, Nerf, NerfConfig, NerfField, NerfGrads, NerfParams, NetGrads};
 use crate::rng::Rng;
 use crate::simd::Isa;
@@ -24,7 +25,8 @@ pub struct ResidualConfig {
     pub mixnet: MixnetEncoding,
 }
 
-/// The field: frozen background, residual, Mixnet.
+/// The field: frozen background, residual, Mixnet, and optionally the change region outside
+/// which the field is the background ([`ChangeRegion`]).
 #[derive(Clone, Debug)]
 pub struct ResidualField {
     /// The frozen background (its parameters are never changed here).
@@ -32,6 +34,7 @@ pub struct ResidualField {
     residual: NerfField,
     mixnet: Mixnet,
     kind: MixKind,
+    region: Option<ChangeRegion>,
 }
 
 /// Trainable parameters of a residual model.
@@ -139,7 +142,46 @@ impl ResidualField {
         );
         let residual = NerfField::new(config.residual);
         let mixnet = Mixnet::new(residual.config().aabb, config.mixnet, residual.encoding_width());
-        ResidualField { background, residual, mixnet, kind: config.kind }
+        ResidualField { background, residual, mixnet, kind: config.kind, region: None }
+    }
+
+    /// The field restricted to `region`: β = 0 outside it, so there the field is the
+    /// background bit for bit. Panics for [`MixKind::Sum`] (no β) or a region over another box.
+    pub fn with_region(mut self, region: ChangeRegion) -> ResidualField {
+        assert!(matches!(self.kind, MixKind::Mixnet(_)), "residual: a change region needs a Mixnet's β");
+        assert_eq!(*region.aabb(), self.residual.config().aabb, "residual: region box differs from the scene box");
+        self.region = Some(region);
+        self
+    }
+
+    /// The change region, if the field has one.
+    pub fn region(&self) -> Option<&ChangeRegion> {
+        self.region.as_ref()
+    }
+
+    /// Whether the residual NeRF has the background's architecture, so it can start as a copy of
+    /// it ([`ResidualField::warm_params`]).
+    pub fn can_warm_start(&self) -> bool {
+        *self.residual.config() == *self.background.field.config()
+    }
+
+    /// Parameters that start at the background: the residual NeRF a copy of the background's
+    /// weights (so any β mixes two equal fields and the mixed field equals the background at
+    /// step 0, for either density mix), the Mixnet fresh. `None` when the architectures differ.
+    pub fn warm_params(&self, rng: &mut Rng) -> Option<ResidualParams> {
+        self.can_warm_start()
+            .then(|| ResidualParams { residual: self.background.params.clone(), mixnet: self.mixnet.init_params(rng) })
+    }
+
+    /// Sets the logit of every sample outside the change region to −∞ (β = 0).
+    fn mask_logits(&self, positions: &[Vec3], logits: &mut [f32]) {
+        if let Some(r) = &self.region {
+            for (m, &p) in logits.iter_mut().zip(positions) {
+                if !r.contains(p) {
+                    *m = f32::NEG_INFINITY;
+                }
+            }
+        }
     }
 
     /// The Mixnet's encoding.
@@ -204,6 +246,7 @@ impl ResidualField {
         if matches!(self.kind, MixKind::Mixnet(_)) {
             let shared = self.shared_features(&ctx.res);
             self.mixnet.forward(isa, &params.mixnet, positions, shared, &mut ctx.logits, &mut ctx.mix);
+            self.mask_logits(positions, &mut ctx.logits);
         }
         for (i, x) in ctx.inputs.iter_mut().enumerate() {
             (x.s_res, x.c_res, x.m) = (ctx.raw[i], ctx.rgb_raw[i], ctx.logits[i]);
@@ -237,6 +280,7 @@ impl ResidualField {
         if matches!(self.kind, MixKind::Mixnet(_)) {
             let shared = self.shared_features(&ctx.res);
             self.mixnet.forward(isa, &params.mixnet, positions, shared, &mut ctx.logits, &mut ctx.mix);
+            self.mask_logits(positions, &mut ctx.logits);
         }
         for i in 0..n {
             let x =
@@ -382,6 +426,7 @@ impl ResidualField {
                 Some(from) => mixnet.chunk_forward(isa, p, from, positions, shared, logits, &mut c.mix),
                 None => mixnet.chunk_logits(isa, p, positions, shared, logits, &mut c.mix),
             }
+            self.mask_logits(positions, &mut c.logits[from..]);
         }
         for (i, s) in sigma.iter_mut().enumerate() {
             let j = from + i;

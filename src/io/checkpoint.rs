@@ -111,6 +111,12 @@ pub fn save_checkpoint<M: ModelFile>(
         w.tensor(&format!("train.adam.{g}.m"), vec![m.len()], m).map_err(at)?;
         w.tensor(&format!("train.adam.{g}.v"), vec![v.len()], v).map_err(at)?;
     }
+    if let Some(f) = &config.focus {
+        // (view, pixel) pairs as f32: exact below 2^24, which the loader checks.
+        let flat: Vec<f32> = f.pixels.iter().flat_map(|&(v, p)| [v as f32, p as f32]).collect();
+        w.tensor("train.focus.pixels", vec![flat.len()], &flat).map_err(at)?;
+        w.meta("train_focus_share", &f.share.to_string());
+    }
     let meta = json!({
         "step": state.step,
         "skipped": state.skipped,
@@ -155,8 +161,28 @@ fn read_checkpoint(r: &ModelReader, occupancy: OccupancyConfig) -> Result<Checkp
         .and_then(Value::as_str)
         .and_then(|s| u64::from_str_radix(s, 16).ok())
         .ok_or_else(|| field("fingerprint"))?;
-    let config = parse_train_config(v.get("train").ok_or_else(|| field("train"))?, occupancy)
+    let mut config = parse_train_config(v.get("train").ok_or_else(|| field("train"))?, occupancy)
         .map_err(|e| format!("metadata 'checkpoint': 'train': {e}"))?;
+    if let Ok(share) = r.meta("train_focus_share") {
+        let share: f32 = share
+            .parse()
+            .ok()
+            .filter(|s: &f32| (0.0..=1.0).contains(s))
+            .ok_or_else(|| format!("metadata 'train_focus_share' = '{share}' is not in [0, 1]"))?;
+        let flat = flat_tensor(r, "train.focus.pixels")?;
+        if flat.len() % 2 != 0 {
+            return Err("tensor 'train.focus.pixels' does not hold (view, pixel) pairs".into());
+        }
+        let mut pixels = Vec::with_capacity(flat.len() / 2);
+        for (i, pair) in flat.chunks(2).enumerate() {
+            let ok = |x: f32| x.is_finite() && x >= 0.0 && x.fract() == 0.0 && x < (1u32 << 24) as f32;
+            if !(ok(pair[0]) && ok(pair[1])) {
+                return Err(format!("tensor 'train.focus.pixels' holds a bad (view, pixel) pair at {i}"));
+            }
+            pixels.push((pair[0] as u32, pair[1] as u32));
+        }
+        config.focus = Some(crate::train::trainer::Focus { share, pixels: std::sync::Arc::new(pixels) });
+    }
     if step > config.steps {
         return Err(format!("metadata 'checkpoint': step {step} is past the run's {} steps", config.steps));
     }
@@ -242,5 +268,8 @@ pub fn parse_train_config(v: &Value, occupancy: OccupancyConfig) -> Result<Train
         seed: uint(v, "seed", 0, u64::MAX)?,
         distortion: real(v, "distortion", 0.0, 1e6)?,
         near_gradient_distance: real(v, "near_gradient_distance", 0.0, 1e6)?,
+        // Focus pixels are derived from the data (the residual prior), not saved: the caller
+        // sets them again on resuming.
+        focus: None,
     })
 }

@@ -19,6 +19,7 @@ use super::atomic::write_atomic;
 use crate::encoding::{HashGridConfig, HashGridParams};
 use crate::field::mix::{DensityMix, MixKind};
 use crate::field::mixnet::{MixnetEncoding, MixnetParams};
+use crate::field::region::ChangeRegion;
 use crate::field::residual::{ResidualConfig, ResidualField, ResidualModel, ResidualParams};
 use crate::field::{NerfConfig, NerfField, NerfParams};
 use crate::mlp::LayerShape;
@@ -319,6 +320,19 @@ impl ModelFile for ResidualField {
             None => w.meta("mixnet_grid", "\"shared\""),
         }
         w.mlp("mixnet", params.mixnet.mlp.weights(), mixnet.mlp().layers())?;
+        if let Some(region) = self.region() {
+            // Cell indices (< 1024³ ≤ 2^30; exact in f32 up to 2^24, so the grid is limited to
+            // 256³ here, above the default 128).
+            if region.resolution() > 256 {
+                return Err(format!(
+                    "change region of {}^3 cells: model files hold at most 256^3",
+                    region.resolution()
+                ));
+            }
+            w.meta("region_resolution", &region.resolution().to_string());
+            let cells: Vec<f32> = region.cells().iter().map(|&c| c as f32).collect();
+            w.tensor("region.cells", vec![cells.len()], &cells)?;
+        }
         Ok(w)
     }
 }
@@ -415,10 +429,47 @@ pub fn model_from_bytes(bytes: &[u8]) -> Result<LoadedModel, String> {
             };
             let mlp = mixnet.mlp_params_from(r.mlp("mixnet", mixnet.mlp().layers(), mixnet.mlp().n_params())?);
             let params = ResidualParams { residual: res.params, mixnet: MixnetParams { grid, mlp } };
-            Ok(LoadedModel::Residual(Box::new(ResidualModel { field, params, occupancy: res.occupancy })))
+            let mut occupancy = res.occupancy;
+            let field = match r.meta("region_resolution").ok() {
+                None => field,
+                Some(text) => {
+                    let region = read_region(&r, text, &field)?;
+                    if region.resolution() == occupancy.config().resolution {
+                        occupancy.pin(&region);
+                    }
+                    field.with_region(region)
+                }
+            };
+            Ok(LoadedModel::Residual(Box::new(ResidualModel { field, params, occupancy })))
         }
         other => Err(format!("model kind '{other}' is not 'nerf' or 'residual'")),
     }
+}
+
+/// The change region of a residual model file (`region_resolution` metadata, `region.cells`).
+fn read_region(r: &ModelReader<'_>, resolution: &str, field: &ResidualField) -> Result<ChangeRegion, String> {
+    let res: u32 = resolution
+        .parse()
+        .ok()
+        .filter(|v| (1..=256).contains(v))
+        .ok_or_else(|| format!("metadata 'region_resolution' = '{resolution}' is not 1..=256"))?;
+    if !matches!(field.kind(), MixKind::Mixnet(_)) {
+        return Err("a change region needs a Mixnet ('mix' is 'sum')".into());
+    }
+    let shape = r.shape("region.cells")?;
+    if shape.len() != 1 {
+        return Err(format!("tensor 'region.cells' has shape {shape:?}, expected one dimension"));
+    }
+    let values = r.tensor("region.cells", &shape)?;
+    let mut cells = Vec::with_capacity(values.len());
+    for (i, v) in values.iter().enumerate() {
+        if !(v.is_finite() && *v >= 0.0 && v.fract() == 0.0) {
+            return Err(format!("tensor 'region.cells' holds {v} at {i}, not a cell index"));
+        }
+        cells.push(*v as u32);
+    }
+    let aabb = field.residual().config().aabb;
+    ChangeRegion::from_cells(aabb, res, &cells).map_err(|e| format!("tensor 'region.cells': {e}"))
 }
 
 /// Loads a model of either kind; errors name the file.

@@ -146,6 +146,8 @@ pub struct OccupancyGrid {
     /// One bit per block of [`BLOCK`]³ cells (x fastest): any cell in it occupied.
     blocks: Vec<u64>,
     step_size: f32,
+    /// Cells kept occupied whatever their value ([`OccupancyGrid::pin`]).
+    pinned: Option<Vec<u64>>,
 }
 
 impl OccupancyGrid {
@@ -160,7 +162,15 @@ impl OccupancyGrid {
             // Only the first n bits stand for cells.
             *bits.last_mut().unwrap() = (1u64 << (n % 64)) - 1;
         }
-        let mut g = OccupancyGrid { values: vec![f32::MAX; n], bits, blocks: Vec::new(), aabb, step_size, config };
+        let mut g = OccupancyGrid {
+            values: vec![f32::MAX; n],
+            bits,
+            blocks: Vec::new(),
+            aabb,
+            step_size,
+            config,
+            pinned: None,
+        };
         g.rebuild_blocks();
         g
     }
@@ -239,7 +249,28 @@ impl OccupancyGrid {
         self.rebuild_bits();
     }
 
-    /// Marks cells whose value passes the optical-thickness rule `σ·δ > min(0.01, mean)`.
+    /// Keeps `region`'s cells occupied from now on, whatever the field's density there (a
+    /// residual model's change region: where a new object may stand in what was empty air, so
+    /// the residual must be sampled before it has any density). Pins carry over clones and
+    /// updates, not model files: a residual model re-pins its region on loading.
+    pub fn pin(&mut self, region: &crate::field::region::ChangeRegion) {
+        assert!(
+            region.resolution() == self.config.resolution && *region.aabb() == self.aabb,
+            "occupancy: the pinned region's grid differs from the occupancy grid"
+        );
+        let mut p = vec![0u64; self.bits.len()];
+        for i in region.cells() {
+            p[i as usize / 64] |= 1 << (i % 64);
+        }
+        for (b, q) in self.bits.iter_mut().zip(&p) {
+            *b |= q;
+        }
+        self.pinned = Some(p);
+        self.rebuild_blocks();
+    }
+
+    /// Marks cells whose value passes the optical-thickness rule `σ·δ > min(0.01, mean)`, and
+    /// the pinned cells.
     fn rebuild_bits(&mut self) {
         let n = self.values.len();
         let mean = self.values.iter().map(|&v| v as f64).sum::<f64>() / n as f64;
@@ -248,6 +279,11 @@ impl OccupancyGrid {
         for (i, &v) in self.values.iter().enumerate() {
             if v > threshold {
                 self.bits[i / 64] |= 1 << (i % 64);
+            }
+        }
+        if let Some(p) = &self.pinned {
+            for (b, q) in self.bits.iter_mut().zip(p) {
+                *b |= q;
             }
         }
         self.rebuild_blocks();

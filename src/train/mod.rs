@@ -4,6 +4,7 @@
 pub mod adam;
 pub mod field_fit;
 pub mod model;
+pub mod prior;
 pub mod slots;
 pub mod trainer;
 

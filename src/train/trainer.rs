@@ -80,6 +80,18 @@ pub struct TrainConfig {
     /// training camera, which only that camera sees, learns slower than the scene. 0 turns it
     /// off. Defaults to [`NEAR_GRADIENT_DISTANCE`].
     pub near_gradient_distance: f32,
+    /// Pixels to draw a share of each step's rays from (a residual model's changed pixels,
+    /// [`crate::train::prior`]). Defaults to none: every ray uniform over all pixels.
+    pub focus: Option<Focus>,
+}
+
+/// A share of each step's rays drawn uniformly from a fixed list of pixels.
+#[derive(Clone, Debug)]
+pub struct Focus {
+    /// Share of the rays (the first `round(share · rays)` of each step), in [0, 1].
+    pub share: f32,
+    /// `(view, pixel)` pairs (pixel = `y · width + x`).
+    pub pixels: std::sync::Arc<Vec<(u32, u32)>>,
 }
 
 /// Default of [`TrainConfig::near_gradient_distance`] (chosen by measured depth; README).
@@ -109,6 +121,7 @@ impl TrainConfig {
             seed: 0,
             distortion: DISTORTION,
             near_gradient_distance: NEAR_GRADIENT_DISTANCE,
+            focus: None,
         }
     }
 }
@@ -478,7 +491,22 @@ impl<'a, M: Model> Trainer<'a, M> {
     pub fn new(isa: Isa, model: &'a M, aabb: Aabb, views: &'a [View], cfg: &'a TrainConfig) -> Self {
         assert!(!views.is_empty(), "train: no training views");
         let mut rng = Rng::new(cfg.seed);
-        let mut params = model.init_params(&mut rng);
+        let params = model.init_params(&mut rng);
+        let occupancy = OccupancyGrid::new(aabb, cfg.occupancy.clone());
+        Self::starting_at(isa, model, views, cfg, params, occupancy)
+    }
+
+    /// A fresh run (step 0, fresh optimisers) from given parameters and occupancy grid: a
+    /// residual model started at its background, or a background NeRF fine-tuned on a scene.
+    pub fn starting_at(
+        isa: Isa,
+        model: &'a M,
+        views: &'a [View],
+        cfg: &'a TrainConfig,
+        mut params: M::Params,
+        occupancy: OccupancyGrid,
+    ) -> Self {
+        assert!(!views.is_empty(), "train: no training views");
         let grads = model.zero_grads();
         let adams = model
             .groups(&mut params, &grads)
@@ -486,7 +514,6 @@ impl<'a, M: Model> Trainer<'a, M> {
             .map(|g| Adam::new(g.master.len(), AdamConfig { l2: g.l2, ..Default::default() }))
             .collect();
         model.after_step(&mut params);
-        let occupancy = OccupancyGrid::new(aabb, cfg.occupancy.clone());
         let state = TrainState { step: 0, params, occupancy, adams, skipped: 0, seconds: 0.0 };
         Self::from_state(isa, model, views, cfg, state).expect("a fresh state fits its model")
     }
@@ -512,6 +539,14 @@ impl<'a, M: Model> Trainer<'a, M> {
         }
         if state.step > cfg.steps {
             return Err(format!("state is at step {}, past the run's {} steps", state.step, cfg.steps));
+        }
+        if let Some(f) = &cfg.focus {
+            let bad = f.pixels.iter().find(|&&(v, p)| {
+                views.get(v as usize).is_none_or(|v| p as u64 >= v.intrinsics.width as u64 * v.intrinsics.height as u64)
+            });
+            if let Some((v, p)) = bad {
+                return Err(format!("focus pixel {p} of view {v} is outside the training views"));
+            }
         }
         let (rays, ctx) = (StepRays::default(), M::Context::default());
         let workers = (0..SLOTS).map(|_| Worker::default()).collect();
@@ -585,15 +620,28 @@ impl<'a, M: Model> Trainer<'a, M> {
             let mut orng = Rng::stream(cfg.seed ^ 0x0CC, step as u64);
             occupancy.update(step, &mut orng, |pts, sigma| model.density(isa, params, pts, sigma, ctx));
         }
-        // 1. Rays: uniform over all pixels of all views.
+        // 1. Rays: the focus share from the focus pixels, the rest uniform over all pixels of
+        //    all views.
         let mut srng = Rng::stream(cfg.seed, step as u64);
         rays.rays.clear();
         rays.targets.clear();
         rays.backgrounds.clear();
-        for _ in 0..cfg.rays_per_step {
-            let v = &views[srng.below(views.len() as u64) as usize];
-            let (w, h) = (v.intrinsics.width, v.intrinsics.height);
-            let p = srng.below(w as u64 * h as u64) as u32;
+        let focused = match &cfg.focus {
+            Some(f) if !f.pixels.is_empty() => (f.share.clamp(0.0, 1.0) * cfg.rays_per_step as f32).round() as usize,
+            _ => 0,
+        };
+        for r in 0..cfg.rays_per_step {
+            let (v, p) = match &cfg.focus {
+                Some(f) if r < focused => {
+                    let (v, p) = f.pixels[srng.below(f.pixels.len() as u64) as usize];
+                    (&views[v as usize], p)
+                }
+                _ => {
+                    let v = &views[srng.below(views.len() as u64) as usize];
+                    (v, srng.below(v.intrinsics.width as u64 * v.intrinsics.height as u64) as u32)
+                }
+            };
+            let w = v.intrinsics.width;
             rays.rays.push(pixel_ray(&v.intrinsics, &v.pose, p % w, p / w));
             rays.targets.push(v.rgb[p as usize]);
             rays.backgrounds.push(match cfg.random_background {
@@ -670,9 +718,28 @@ pub fn train_model<M: Model>(
     views: &[View],
     cfg: &TrainConfig,
     log_every: u32,
+    observe: impl FnMut(StepStats, &M::Params, &OccupancyGrid),
+) -> Result<(M::Params, OccupancyGrid), TrainError> {
+    train_model_from(isa, model, aabb, views, cfg, None, log_every, observe)
+}
+
+/// [`train_model`] from `start` (parameters and occupancy grid, [`Trainer::starting_at`])
+/// when given, else from fresh parameters.
+#[allow(clippy::too_many_arguments)]
+pub fn train_model_from<M: Model>(
+    isa: Isa,
+    model: &M,
+    aabb: Aabb,
+    views: &[View],
+    cfg: &TrainConfig,
+    start: Option<(M::Params, OccupancyGrid)>,
+    log_every: u32,
     mut observe: impl FnMut(StepStats, &M::Params, &OccupancyGrid),
 ) -> Result<(M::Params, OccupancyGrid), TrainError> {
-    let mut trainer = Trainer::new(isa, model, aabb, views, cfg);
+    let mut trainer = match start {
+        Some((params, occupancy)) => Trainer::starting_at(isa, model, views, cfg, params, occupancy),
+        None => Trainer::new(isa, model, aabb, views, cfg),
+    };
     while !trainer.is_done() {
         let stats = trainer.step()?;
         if log_every > 0 && ((stats.step + 1) % log_every == 0 || stats.step + 1 == cfg.steps) {

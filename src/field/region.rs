@@ -1,0 +1,149 @@
+//! The **change region** of a residual model: the cells of a regular grid over the scene box
+//! (the occupancy grid's cells) where the scene may differ from the background. Outside it the
+//! residual field *is* the frozen background: β = 0 there, so the mix returns the background's
+//! density and colour bit for bit and neither the residual nor the Mixnet gets a gradient from
+//! it. The region is voted from the training images' change maps ([`crate::train::prior`]);
+//! inside it the trainer keeps the occupancy grid's cells marchable, so a glass standing where
+//! the background had empty air is sampled from the first step on.
+
+use crate::render::Aabb;
+use glam::Vec3;
+
+/// A set of cells of a `resolution³` grid over `aabb` (cell `x + r·(y + r·z)`, x fastest, as
+/// the occupancy grid).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ChangeRegion {
+    aabb: Aabb,
+    resolution: u32,
+    bits: Vec<u64>,
+}
+
+impl ChangeRegion {
+    /// An empty region.
+    pub fn empty(aabb: Aabb, resolution: u32) -> ChangeRegion {
+        assert!((1..=1024).contains(&resolution), "region: resolution must be 1..=1024");
+        let n = (resolution as usize).pow(3);
+        ChangeRegion { aabb, resolution, bits: vec![0; n.div_ceil(64)] }
+    }
+
+    /// The region holding `cells` (indices below `resolution³`; others are refused).
+    pub fn from_cells(aabb: Aabb, resolution: u32, cells: &[u32]) -> Result<ChangeRegion, String> {
+        let mut r = ChangeRegion::empty(aabb, resolution);
+        let n = r.n_cells();
+        for &c in cells {
+            if c as usize >= n {
+                return Err(format!("region cell {c} is outside the {resolution}^3 grid"));
+            }
+            r.insert(c as usize);
+        }
+        Ok(r)
+    }
+
+    /// The scene box.
+    pub fn aabb(&self) -> &Aabb {
+        &self.aabb
+    }
+
+    /// Cells per axis.
+    pub fn resolution(&self) -> u32 {
+        self.resolution
+    }
+
+    /// Cells of the grid.
+    pub fn n_cells(&self) -> usize {
+        (self.resolution as usize).pow(3)
+    }
+
+    /// Adds cell `i`.
+    pub fn insert(&mut self, i: usize) {
+        self.bits[i / 64] |= 1 << (i % 64);
+    }
+
+    /// Whether cell `i` is in the region.
+    #[inline]
+    pub fn has_cell(&self, i: usize) -> bool {
+        self.bits[i / 64] >> (i % 64) & 1 == 1
+    }
+
+    /// Whether world point `p` lies in a cell of the region (points outside the box never do).
+    #[inline]
+    pub fn contains(&self, p: Vec3) -> bool {
+        let u = self.aabb.to_unit(p) * self.resolution as f32;
+        if !(u.x >= 0.0 && u.y >= 0.0 && u.z >= 0.0) {
+            return false;
+        }
+        let r = self.resolution;
+        let (x, y, z) = (u.x as u32, u.y as u32, u.z as u32);
+        if x >= r || y >= r || z >= r {
+            return false;
+        }
+        self.has_cell((x + r * (y + r * z)) as usize)
+    }
+
+    /// The region's cells in increasing order.
+    pub fn cells(&self) -> Vec<u32> {
+        (0..self.n_cells() as u32).filter(|&i| self.has_cell(i as usize)).collect()
+    }
+
+    /// Number of cells in the region.
+    pub fn count(&self) -> usize {
+        self.bits.iter().map(|w| w.count_ones() as usize).sum()
+    }
+
+    /// The region grown by `cells` cells along each axis (a cube neighbourhood).
+    pub fn dilated(&self, cells: u32) -> ChangeRegion {
+        let r = self.resolution as i64;
+        let k = cells as i64;
+        let mut out = ChangeRegion::empty(self.aabb, self.resolution);
+        for i in self.cells() {
+            let i = i as i64;
+            let (x, y, z) = (i % r, (i / r) % r, i / (r * r));
+            for dz in -k..=k {
+                for dy in -k..=k {
+                    for dx in -k..=k {
+                        let (a, b, c) = (x + dx, y + dy, z + dz);
+                        if (0..r).contains(&a) && (0..r).contains(&b) && (0..r).contains(&c) {
+                            out.insert((a + r * (b + r * c)) as usize);
+                        }
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// Centre of cell `i` in world coordinates.
+    pub fn cell_centre(&self, i: usize) -> Vec3 {
+        let r = self.resolution as usize;
+        let (x, y, z) = (i % r, (i / r) % r, i / (r * r));
+        let cell = self.aabb.size() / self.resolution as f32;
+        self.aabb.min + (Vec3::new(x as f32, y as f32, z as f32) + 0.5) * cell
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn unit_box() -> Aabb {
+        Aabb { min: Vec3::ZERO, max: Vec3::ONE }
+    }
+
+    #[test]
+    fn contains_the_points_of_its_cells_only() {
+        let r = ChangeRegion::from_cells(unit_box(), 4, &[1 + 4 * (2 + 4 * 3)]).unwrap();
+        assert!(r.contains(Vec3::new(0.3, 0.6, 0.9)));
+        assert!(!r.contains(Vec3::new(0.2, 0.6, 0.9)));
+        assert!(!r.contains(Vec3::new(0.3, 0.6, 1.1)));
+        assert!(!r.contains(Vec3::new(f32::NAN, 0.6, 0.9)));
+        assert_eq!(r.cells(), vec![1 + 4 * (2 + 4 * 3)]);
+        assert!(r.contains(r.cell_centre(1 + 4 * (2 + 4 * 3))));
+    }
+
+    #[test]
+    fn dilation_grows_a_cell_into_a_clipped_cube() {
+        let r = ChangeRegion::from_cells(unit_box(), 8, &[0, 4 + 8 * (4 + 8 * 4)]).unwrap();
+        assert_eq!(r.dilated(1).count(), 8 + 27);
+        assert!(ChangeRegion::from_cells(unit_box(), 2, &[8]).is_err());
+    }
+}

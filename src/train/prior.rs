@@ -1,0 +1,360 @@
+//! What the background tells a residual model before it trains (the background-aware
+//! Residual-NeRF): where each scene image changed, where in 3-D the scene changed, and which
+//! pixels to train on more often.
+//!
+//! 1. **Background colours** per scene training view: the background capture's image at the
+//!    same pose when there is one (same intrinsics, pose within [`SAME_POSE`]), else the
+//!    background model rendered at that pose.
+//! 2. **Change maps** ([`change_map`]): a pixel changed when the 3×3 box-filtered colours differ
+//!    by more than [`PriorConfig::tolerance`] in some channel; single specks are removed (a
+//!    changed pixel needs [`MIN_NEIGHBOURS`] changed 8-neighbours) and the map is dilated by
+//!    [`PriorConfig::dilate_px`] pixels, so the edges of a faint glass are kept.
+//! 3. **Change region** ([`vote_region`]): every occupancy cell is projected into every view; a
+//!    view *sees* the cell when it lies in front of the background's threshold-depth surface at
+//!    that pixel (within a cell diagonal; at a hole in the background's depth per
+//!    [`PriorConfig::holes_see`]). A cell is changed when at least [`PriorConfig::min_seen`] of
+//!    the views (and 3) see it and at least [`PriorConfig::vote`] of them see a
+//!    changed pixel there: a visual hull of the change maps, carved by the background's own
+//!    geometry, so a view whose line of sight is blocked by an opaque object does not vote. The
+//!    region is then dilated by [`PriorConfig::region_dilate`] cells.
+//! 4. **Focus pixels**: the changed pixels of every view, from which the trainer draws
+//!    [`PriorConfig::change_share`] of each step's rays ([`crate::train::trainer::Focus`]).
+
+use crate::field::region::ChangeRegion;
+use crate::field::residual::{ResidualConfig, ResidualField, ResidualParams};
+use crate::field::Nerf;
+use crate::render::view::Scene;
+use crate::render::OccupancyGrid;
+use crate::render::{DensityThreshold, FullOutputs, ViewRenderer};
+use crate::rng::Rng;
+use crate::simd::Isa;
+use crate::train::model::Model;
+use crate::train::trainer::View;
+use crate::train::trainer::{Focus, TrainConfig};
+use glam::Vec3;
+use rayon::prelude::*;
+
+/// Two poses within this (rotation entries and translation, scene units) are the same pose.
+pub const SAME_POSE: f32 = 1e-4;
+
+/// Changed 8-neighbours a changed pixel needs to stay changed (speck removal).
+pub const MIN_NEIGHBOURS: u32 = 2;
+
+/// Settings of the background prior (defaults measured on the dev scenes: docs/DECISIONS.md).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PriorConfig {
+    /// Colour difference (max over channels, of 3×3 box-filtered [0, 1] colours) above which a
+    /// pixel changed. Defaults to 0.05 (13/255).
+    pub tolerance: f32,
+    /// Dilation of the change maps (pixels). Defaults to 2.
+    pub dilate_px: u32,
+    /// Share of the views that see a cell which must see a change there. Defaults to 0.5.
+    pub vote: f32,
+    /// Share of the views that must see a cell before it can be changed (and at least 3
+    /// views). Defaults to 0 (3 views: the rule measured on the dev set); a larger share carves
+    /// cells seen by a few views only (near a wall, above the cameras) out of the region.
+    pub min_seen: f32,
+    /// Whether a view whose background depth has a hole at the cell's pixel sees the cell (the
+    /// hole read as "no surface up to infinity"). Defaults to true (as measured on the dev set,
+    /// whose background has no holes); false leaves such views out of the vote, which a weak
+    /// background with holes needs.
+    pub holes_see: bool,
+    /// Dilation of the voted region (cells). Defaults to 1.
+    pub region_dilate: u32,
+    /// Share of each step's rays drawn from changed pixels. Defaults to 0.5.
+    pub change_share: f32,
+}
+
+impl Default for PriorConfig {
+    fn default() -> Self {
+        PriorConfig {
+            tolerance: 0.05,
+            dilate_px: 2,
+            vote: 0.5,
+            min_seen: 0.0,
+            holes_see: true,
+            region_dilate: 1,
+            change_share: 0.5,
+        }
+    }
+}
+
+/// The prior of one scene.
+#[derive(Clone, Debug)]
+pub struct ScenePrior {
+    /// Change map per training view (`width × height`, row-major).
+    pub maps: Vec<Vec<bool>>,
+    /// Views whose background colours came from a background image (the rest were rendered).
+    pub matched_views: usize,
+    /// The voted 3-D change region.
+    pub region: ChangeRegion,
+    /// `(view, pixel)` of every changed pixel.
+    pub focus: Vec<(u32, u32)>,
+}
+
+fn same_pose(a: &View, b: &View) -> bool {
+    let (ka, kb) = (&a.intrinsics, &b.intrinsics);
+    let same_k = ka.width == kb.width && ka.height == kb.height && ka.fx == kb.fx && ka.fy == kb.fy;
+    let dr = (a.pose.rotation - b.pose.rotation).to_cols_array().iter().fold(0f32, |m, v| m.max(v.abs()));
+    same_k && dr <= SAME_POSE && (a.pose.translation - b.pose.translation).abs().max_element() <= SAME_POSE
+}
+
+/// The background's colours at each of `views`' poses: `bg_views`' image at the same pose, else
+/// `background` rendered there (over `sky`). Returns the colours and how many were matched.
+pub fn background_colours(
+    isa: Isa,
+    background: &Nerf,
+    bg_views: &[View],
+    views: &[View],
+    sky: [f32; 3],
+    m: DensityThreshold,
+) -> (Vec<Vec<[f32; 3]>>, usize) {
+    let mut renderer = ViewRenderer::new();
+    let mut matched = 0;
+    let out = views
+        .iter()
+        .map(|v| match bg_views.iter().find(|b| same_pose(b, v)) {
+            Some(b) => {
+                matched += 1;
+                b.rgb.clone()
+            }
+            None => {
+                let k = &v.intrinsics;
+                let n = (k.width * k.height) as usize;
+                let (mut rgb, mut e, mut t) = (vec![[0.0; 3]; n], vec![0.0; n], vec![0.0; n]);
+                let o = FullOutputs { rgb: &mut rgb, expected_z: &mut e, threshold_z: &mut t, beta: &mut [] };
+                renderer.full(isa, &Scene::from(background), k, &v.pose, sky, m, o);
+                rgb
+            }
+        })
+        .collect();
+    (out, matched)
+}
+
+/// 3×3 box filter (edges clamped).
+fn box3(img: &[[f32; 3]], w: usize, h: usize) -> Vec<[f32; 3]> {
+    let mut out = vec![[0.0; 3]; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            let mut acc = [0.0f32; 3];
+            for dy in -1i64..=1 {
+                for dx in -1i64..=1 {
+                    let xx = (x as i64 + dx).clamp(0, w as i64 - 1) as usize;
+                    let yy = (y as i64 + dy).clamp(0, h as i64 - 1) as usize;
+                    let c = img[yy * w + xx];
+                    (0..3).for_each(|k| acc[k] += c[k]);
+                }
+            }
+            out[y * w + x] = acc.map(|v| v / 9.0);
+        }
+    }
+    out
+}
+
+/// The change map of a scene image against the background's colours at the same pose (see the
+/// module docs).
+pub fn change_map(scene: &[[f32; 3]], background: &[[f32; 3]], w: u32, h: u32, cfg: &PriorConfig) -> Vec<bool> {
+    let (w, h) = (w as usize, h as usize);
+    assert!(scene.len() == w * h && background.len() == w * h, "prior: images differ from width × height");
+    let (a, b) = (box3(scene, w, h), box3(background, w, h));
+    let raw: Vec<bool> = a.iter().zip(&b).map(|(p, q)| (0..3).any(|k| (p[k] - q[k]).abs() > cfg.tolerance)).collect();
+    let at = |m: &[bool], x: i64, y: i64| {
+        x >= 0 && y >= 0 && (x as usize) < w && (y as usize) < h && m[y as usize * w + x as usize]
+    };
+    let mut kept = vec![false; w * h];
+    for y in 0..h as i64 {
+        for x in 0..w as i64 {
+            if at(&raw, x, y) {
+                let n = (-1..=1).flat_map(|dy| (-1..=1).map(move |dx| (dx, dy))).filter(|&(dx, dy)| (dx, dy) != (0, 0));
+                let count = n.filter(|&(dx, dy)| at(&raw, x + dx, y + dy)).count() as u32;
+                kept[y as usize * w + x as usize] = count >= MIN_NEIGHBOURS;
+            }
+        }
+    }
+    let r = cfg.dilate_px as i64;
+    let mut out = vec![false; w * h];
+    for y in 0..h as i64 {
+        for x in 0..w as i64 {
+            if kept[y as usize * w + x as usize] {
+                for dy in -r..=r {
+                    for dx in -r..=r {
+                        let (xx, yy) = (x + dx, y + dy);
+                        if xx >= 0 && yy >= 0 && (xx as usize) < w && (yy as usize) < h {
+                            out[yy as usize * w + xx as usize] = true;
+                        }
+                    }
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Votes the change maps into a region over the background's occupancy cells (module docs).
+/// `m` is the threshold of the background's depth surface.
+pub fn vote_region(
+    isa: Isa,
+    background: &Nerf,
+    views: &[View],
+    maps: &[Vec<bool>],
+    m: DensityThreshold,
+    cfg: &PriorConfig,
+) -> ChangeRegion {
+    assert_eq!(views.len(), maps.len(), "prior: one change map per view");
+    let occ = &background.occupancy;
+    let (aabb, res) = (*occ.aabb(), occ.config().resolution);
+    // The background's threshold z-depth per view (NaN: a hole).
+    let mut renderer = ViewRenderer::new();
+    let depth: Vec<Vec<f32>> = views
+        .iter()
+        .map(|v| {
+            let k = &v.intrinsics;
+            let mut z = vec![0.0; (k.width * k.height) as usize];
+            renderer.depth(isa, &Scene::from(background), k, &v.pose, m, &mut z);
+            z
+        })
+        .collect();
+    let empty = ChangeRegion::empty(aabb, res);
+    let margin = (aabb.size() / res as f32).length();
+    let plane = (res * res) as usize;
+    let min_views = ((cfg.min_seen * views.len() as f32).ceil() as u32).max(3);
+    let changed: Vec<Vec<u32>> = (0..res as usize)
+        .into_par_iter()
+        .map(|z| {
+            let mut out = Vec::new();
+            for i in z * plane..(z + 1) * plane {
+                let p: Vec3 = empty.cell_centre(i);
+                let (mut seen, mut hit) = (0u32, 0u32);
+                for ((v, map), zb) in views.iter().zip(maps).zip(&depth) {
+                    let k = &v.intrinsics;
+                    let c = v.pose.rotation.transpose() * (p - v.pose.translation);
+                    let zc = -c.z;
+                    if zc <= 1e-3 {
+                        continue;
+                    }
+                    let (px, py) = (k.cx + k.fx * c.x / zc, k.cy - k.fy * c.y / zc);
+                    if !(px >= 0.0 && py >= 0.0 && px < k.width as f32 && py < k.height as f32) {
+                        continue;
+                    }
+                    let pix = py as usize * k.width as usize + px as usize;
+                    let surface = zb[pix];
+                    // Behind the background's surface the view does not vote; at a hole in the
+                    // background's depth it votes when `holes_see`.
+                    let visible = match surface.is_finite() {
+                        true => zc <= surface + margin,
+                        false => cfg.holes_see,
+                    };
+                    if !visible {
+                        continue;
+                    }
+                    seen += 1;
+                    hit += map[pix] as u32;
+                }
+                if seen >= min_views && hit as f32 >= cfg.vote * seen as f32 {
+                    out.push(i as u32);
+                }
+            }
+            out
+        })
+        .collect();
+    let cells: Vec<u32> = changed.into_iter().flatten().collect();
+    let region = ChangeRegion::from_cells(aabb, res, &cells).expect("cells come from the grid");
+    region.dilated(cfg.region_dilate)
+}
+
+/// The whole prior of a scene: colours, change maps, region and focus pixels.
+pub fn scene_prior(
+    isa: Isa,
+    background: &Nerf,
+    bg_views: &[View],
+    views: &[View],
+    sky: [f32; 3],
+    m: DensityThreshold,
+    cfg: &PriorConfig,
+) -> ScenePrior {
+    let (colours, matched_views) = background_colours(isa, background, bg_views, views, sky, m);
+    let maps: Vec<Vec<bool>> = views
+        .par_iter()
+        .zip(&colours)
+        .map(|(v, bg)| change_map(&v.rgb, bg, v.intrinsics.width, v.intrinsics.height, cfg))
+        .collect();
+    let region = vote_region(isa, background, views, &maps, m, cfg);
+    let focus = maps
+        .iter()
+        .enumerate()
+        .flat_map(|(i, map)| map.iter().enumerate().filter(|(_, &c)| c).map(move |(p, _)| (i as u32, p as u32)))
+        .collect();
+    ScenePrior { maps, matched_views, region, focus }
+}
+
+/// Which of the background's hints a residual model uses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Prior {
+    /// Start at the background: the residual NeRF a copy of the background's weights (and so
+    /// of its architecture), the occupancy grid the background's.
+    pub warm_start: bool,
+    /// The voted change region: β = 0 outside it, its cells always marched.
+    pub region: bool,
+    /// Draw [`PriorConfig::change_share`] of the rays from changed pixels.
+    pub focus: bool,
+}
+
+impl Prior {
+    /// None: the paper's Residual-NeRF.
+    pub const NONE: Prior = Prior { warm_start: false, region: false, focus: false };
+    /// All: the background-aware Residual-NeRF (the default).
+    pub const ALL: Prior = Prior { warm_start: true, region: true, focus: true };
+}
+
+/// Where a residual model's training starts.
+pub struct ResidualStart {
+    /// The field (with its change region when the hints ask for one).
+    pub field: ResidualField,
+    /// Initial parameters.
+    pub params: ResidualParams,
+    /// Initial occupancy grid (the region's cells pinned).
+    pub occupancy: OccupancyGrid,
+    /// The focus pixels for [`TrainConfig::focus`], when the hints ask for them.
+    pub focus: Option<Focus>,
+}
+
+/// The start of a residual model over `background` with `config` and `hints`, the scene's
+/// `prior` (needed by every hint but none), seeded by `cfg.seed`. With `warm_start` the
+/// residual takes the background's architecture (`config.residual` is replaced), so the mixed
+/// field equals the background at step 0.
+pub fn residual_start(
+    background: &Nerf,
+    mut config: ResidualConfig,
+    hints: Prior,
+    prior: Option<&ScenePrior>,
+    cfg: &TrainConfig,
+    pcfg: &PriorConfig,
+) -> ResidualStart {
+    if hints.warm_start {
+        config.residual = background.field.config().clone();
+    }
+    let aabb = config.residual.aabb;
+    let mut field = ResidualField::new(background.clone(), config);
+    if let (true, Some(p)) = (hints.region, prior) {
+        field = field.with_region(p.region.clone());
+    }
+    let mut rng = Rng::new(cfg.seed);
+    let params = match hints.warm_start {
+        true => field.warm_params(&mut rng).expect("the residual has the background's architecture"),
+        false => Model::init_params(&field, &mut rng),
+    };
+    let mut occupancy = match hints.warm_start {
+        true => background.occupancy.clone(),
+        false => OccupancyGrid::new(aabb, cfg.occupancy.clone()),
+    };
+    if let Some(region) = field.region() {
+        if occupancy.config().resolution == region.resolution() {
+            occupancy.pin(region);
+        }
+    }
+    let focus = match (hints.focus, prior) {
+        (true, Some(p)) => Some(Focus { share: pcfg.change_share, pixels: std::sync::Arc::new(p.focus.clone()) }),
+        _ => None,
+    };
+    ResidualStart { field, params, occupancy, focus }
+}

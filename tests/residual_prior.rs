@@ -1,0 +1,220 @@
+//! The background-aware residual model: at step 0 it is the background; outside its change
+//! region it is the background bit for bit (and gets no gradient); change maps and the voted
+//! region find the synthesiser's glass and nothing far from it, also when the scene was
+//! captured from other poses than the background.
+
+mod common;
+
+use glam::Vec3;
+use proptest::prelude::*;
+use residual_nerf::data::workspace;
+use residual_nerf::encoding::HashGridConfig;
+use residual_nerf::field::mix::{DensityMix, MixKind};
+use residual_nerf::field::mixnet::MixnetEncoding;
+use residual_nerf::field::region::ChangeRegion;
+use residual_nerf::field::residual::{ResidualConfig, ResidualContext, ResidualField};
+use residual_nerf::field::Nerf;
+use residual_nerf::render::{Aabb, DensityThreshold};
+use residual_nerf::rng::Rng;
+use residual_nerf::train::model::Model;
+use residual_nerf::train::prior::{change_map, scene_prior, PriorConfig};
+use residual_nerf::train::trainer::train_nerf;
+use residual_nerf::GradientMode;
+
+fn grid() -> HashGridConfig {
+    HashGridConfig { levels: 4, log2_table_size: 8, base_resolution: 4, finest_resolution: 16 }
+}
+
+fn aabb() -> Aabb {
+    Aabb { min: Vec3::splat(-1.0), max: Vec3::splat(1.0) }
+}
+
+fn field(bg: &Nerf, kind: MixKind) -> ResidualField {
+    let config = ResidualConfig { residual: bg.field.config().clone(), kind, mixnet: MixnetEncoding::default() };
+    ResidualField::new(bg.clone(), config)
+}
+
+fn points(seed: u64, n: usize) -> (Vec<Vec3>, Vec<Vec3>) {
+    let mut rng = Rng::new(seed);
+    let p = (0..n).map(|_| Vec3::new(rng.uniform(-1.0, 1.0), rng.uniform(-1.0, 1.0), rng.uniform(-1.0, 1.0))).collect();
+    let d = (0..n)
+        .map(|_| {
+            Vec3::new(rng.uniform(-1.0, 1.0), rng.uniform(-1.0, 1.0), rng.uniform(-1.0, 1.0)).normalize_or(Vec3::Z)
+        })
+        .collect();
+    (p, d)
+}
+
+/// The background's own activated density and colour at the points.
+fn background_outputs(bg: &Nerf, p: &[Vec3], d: &[Vec3]) -> (Vec<f32>, Vec<[f32; 3]>) {
+    let isa = common::best_fp32_isa();
+    let n = p.len();
+    let (mut s, mut c) = (vec![0.0; n], vec![[0.0; 3]; n]);
+    let mut ctx = Default::default();
+    Model::forward(&bg.field, isa, &bg.params, p, d, &mut s, &mut c, &mut ctx);
+    (s, c)
+}
+
+proptest! {
+    #![proptest_config(common::cases(8))]
+
+    /// Warm-started, the mixed field is the background at step 0, whatever β, for both density
+    /// mixes (to rounding: the raw mix computes (1−β)s + βs).
+    #[test]
+    fn warm_start_equals_the_background(seed in 0u64..1000) {
+        let isa = common::best_fp32_isa();
+        let mut rng = Rng::new(seed);
+        let bg = common::lively_nerf(grid(), &mut rng);
+        let bg = Nerf { field: bg.field, params: bg.params, occupancy: bg.occupancy };
+        let (p, d) = points(seed ^ 7, 64);
+        let (s_bg, c_bg) = background_outputs(&bg, &p, &d);
+        for kind in [MixKind::Mixnet(DensityMix::Raw), MixKind::Mixnet(DensityMix::Activated)] {
+            let f = field(&bg, kind);
+            let mut params = f.warm_params(&mut rng).expect("same architecture");
+            // A Mixnet that is not ½ everywhere: random output weights.
+            let w = params.mixnet.mlp.weights_mut();
+            for x in w.iter_mut() { *x = rng.uniform(-1.0, 1.0); }
+            params.mixnet.mlp.sync();
+            let n = p.len();
+            let (mut s, mut c) = (vec![0.0; n], vec![[0.0; 3]; n]);
+            f.forward(isa, &params, &p, &d, &mut s, &mut c, &mut ResidualContext::default());
+            for i in 0..n {
+                prop_assert!((s[i] - s_bg[i]).abs() <= 1e-4 * s_bg[i].abs().max(1.0), "{kind:?}: σ {} vs {}", s[i], s_bg[i]);
+                for k in 0..3 {
+                    prop_assert!((c[i][k] - c_bg[i][k]).abs() <= 1e-5, "{kind:?}: colour {} vs {}", c[i][k], c_bg[i][k]);
+                }
+            }
+        }
+    }
+
+    /// Outside the change region the field is the background bit for bit (fresh, untrained
+    /// residual and Mixnet), and no gradient reaches the residual or the Mixnet from there.
+    #[test]
+    fn outside_the_region_the_field_is_the_background(seed in 0u64..1000) {
+        let isa = common::best_fp32_isa();
+        let mut rng = Rng::new(seed);
+        let bg = common::lively_nerf(grid(), &mut rng);
+        let bg = Nerf { field: bg.field, params: bg.params, occupancy: bg.occupancy };
+        // A region of a few random cells of an 8³ grid; most points fall outside.
+        let cells: Vec<u32> = (0..6).map(|_| rng.below(512) as u32).collect();
+        let region = ChangeRegion::from_cells(aabb(), 8, &cells).unwrap();
+        let (p, d) = points(seed ^ 11, 96);
+        let (s_bg, c_bg) = background_outputs(&bg, &p, &d);
+        for kind in [MixKind::Mixnet(DensityMix::Raw), MixKind::Mixnet(DensityMix::Activated)] {
+            let f = field(&bg, kind).with_region(region.clone());
+            let params = Model::init_params(&f, &mut rng);
+            let n = p.len();
+            let (mut s, mut c) = (vec![0.0; n], vec![[0.0; 3]; n]);
+            let mut ctx = ResidualContext::default();
+            f.forward(isa, &params, &p, &d, &mut s, &mut c, &mut ctx);
+            let mut outside = 0;
+            for i in (0..n).filter(|&i| !region.contains(p[i])) {
+                outside += 1;
+                prop_assert_eq!(s[i].to_bits(), s_bg[i].to_bits(), "{:?}: σ at {}", kind, p[i]);
+                for k in 0..3 {
+                    prop_assert_eq!(c[i][k].to_bits(), c_bg[i][k].to_bits());
+                }
+            }
+            prop_assert!(outside > 0);
+            // Chunk path (training, depth-only rendering): the same σ.
+            let mut chunk = Default::default();
+            let mut s2 = vec![0.0; n];
+            f.chunk_density(isa, &params, 0, &p, &mut s2, &mut chunk);
+            for i in (0..n).filter(|&i| !region.contains(p[i])) {
+                prop_assert_eq!(s2[i].to_bits(), s_bg[i].to_bits());
+            }
+            // Gradients of outside samples only: zero everywhere.
+            let d_sigma: Vec<f32> = (0..n).map(|i| if region.contains(p[i]) { 0.0 } else { 1.0 }).collect();
+            let d_rgb: Vec<[f32; 3]> = d_sigma.iter().map(|&g| [g; 3]).collect();
+            let mut grads = f.zero_grads();
+            f.backward(isa, &params, &mut ctx, &d_sigma, &d_rgb, &mut grads, GradientMode::Overwrite);
+            let all = [&grads.residual.grid, &grads.residual.density, &grads.residual.colour, &grads.mixnet.grid, &grads.mixnet.mlp];
+            for g in all {
+                prop_assert!(g.iter().all(|&x| x == 0.0), "{:?}: a gradient from outside the region", kind);
+            }
+        }
+    }
+}
+
+fn frac(mask: &[bool], map: &[bool]) -> f64 {
+    let n = mask.iter().filter(|&&m| m).count();
+    mask.iter().zip(map).filter(|(&m, &c)| m && c).count() as f64 / n.max(1) as f64
+}
+
+/// Pixels farther than `r` pixels from every mask pixel.
+fn far_from(mask: &[bool], w: usize, r: i64) -> Vec<bool> {
+    let h = mask.len() / w;
+    (0..mask.len())
+        .map(|p| {
+            let (x, y) = ((p % w) as i64, (p / w) as i64);
+            !(-r..=r).any(|dy| {
+                (-r..=r).any(|dx| {
+                    let (a, b) = (x + dx, y + dy);
+                    a >= 0 && b >= 0 && (a as usize) < w && (b as usize) < h && mask[b as usize * w + a as usize]
+                })
+            })
+        })
+        .collect()
+}
+
+#[test]
+fn change_maps_find_the_glass_and_nothing_far_from_it() {
+    let size = 48;
+    let bg = workspace::workspace(size, 6, 0.0, false);
+    let scene = workspace::workspace(size, 6, 0.0, true);
+    let cfg = PriorConfig::default();
+    for i in 0..6 {
+        let map = change_map(&scene.views[i].rgb, &bg.views[i].rgb, size, size, &cfg);
+        let mask = &scene.masks[i];
+        let found = frac(mask, &map);
+        let far = far_from(mask, size as usize, 6);
+        let false_alarm =
+            far.iter().zip(&map).filter(|(&f, &c)| f && c).count() as f64 / far.iter().filter(|&&f| f).count() as f64;
+        assert!(found >= 0.9, "view {i}: {:.1}% of the glass pixels marked changed", 100.0 * found);
+        assert!(
+            false_alarm <= 0.02,
+            "view {i}: {:.1}% of the pixels far from the glass marked changed",
+            100.0 * false_alarm
+        );
+    }
+}
+
+/// The voted region holds the glass sphere's centre and little else; with the scene captured
+/// from other poses than the background the change maps come from the rendered background.
+#[test]
+fn the_voted_region_holds_the_glass_from_the_same_and_from_other_poses() {
+    let isa = residual_nerf::simd::Isa::detect();
+    let size = 32;
+    let demo = residual_nerf::app::demo_config(300, 0);
+    let bg_views = workspace::workspace(size, 24, 0.0, false);
+    let background = train_nerf(isa, &bg_views.views, demo.field.clone(), &demo.train, 0, |_| {}).expect("trains");
+    let m = DensityThreshold::Sigma(10.0);
+    let (centre, radius) = workspace::GLASS;
+    for (phase, matched) in [(0.0, true), (0.5, false)] {
+        let scene = workspace::workspace(size, 24, phase, true);
+        let bgv = if matched { &bg_views.views[..] } else { &[] };
+        // The tighter vote for a tiny, weak background with holes (PriorConfig docs).
+        let cfg = PriorConfig { min_seen: 0.25, holes_see: false, ..Default::default() };
+        let p = scene_prior(isa, &background, bgv, &scene.views, workspace::SKY, m, &cfg);
+        assert_eq!(p.matched_views, if matched { 24 } else { 0 });
+        assert!(p.region.contains(centre), "phase {phase}: the glass centre is outside the region");
+        let cell = p.region.aabb().size() / p.region.resolution() as f32;
+        let volume = p.region.count() as f32 * cell.x * cell.y * cell.z;
+        let sphere = 4.0 / 3.0 * std::f32::consts::PI * radius.powi(3);
+        eprintln!("phase {phase}: region {} cells, {volume:.4} m³ (glass {sphere:.4} m³)", p.region.count());
+        let cs: Vec<Vec3> = p.region.cells().iter().map(|&c| p.region.cell_centre(c as usize)).collect();
+        let near = cs.iter().filter(|c| (**c - centre).length() < 0.4).count();
+        eprintln!("phase {phase}: {near} of the region's cells within 0.4 m of the glass");
+        // At this tiny scale (32 px, 24 views, a 300-step background, 10 cm cells) the hull is
+        // loose: bounded against the room and concentrated around the glass.
+        let room = p.region.aabb().size();
+        // Against the rendered background (other poses) the maps carry the tiny background's
+        // rendering noise and the region is looser still: only containment is asserted there.
+        if matched {
+            assert!(volume < 0.1 * room.x * room.y * room.z, "phase {phase}: region {volume} m³");
+            assert!(near * 5 >= cs.len(), "phase {phase}: {near} of {} cells near the glass", cs.len());
+        }
+        // A point of the room far from the glass is outside.
+        assert!(!p.region.contains(Vec3::new(-1.2, 1.2, 0.5)));
+    }
+}
