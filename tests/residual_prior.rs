@@ -45,14 +45,25 @@ fn points(seed: u64, n: usize) -> (Vec<Vec3>, Vec<Vec3>) {
     (p, d)
 }
 
-/// The background's own activated density and colour at the points.
-fn background_outputs(bg: &Nerf, p: &[Vec3], d: &[Vec3]) -> (Vec<f32>, Vec<[f32; 3]>) {
-    let isa = common::best_fp32_isa();
-    let n = p.len();
-    let (mut s, mut c) = (vec![0.0; n], vec![[0.0; 3]; n]);
+/// A random lively background, `n` random samples, and the background's own activated
+/// density and colour there.
+struct Case {
+    rng: Rng,
+    bg: Nerf,
+    p: Vec<Vec3>,
+    d: Vec<Vec3>,
+    s_bg: Vec<f32>,
+    c_bg: Vec<[f32; 3]>,
+}
+
+fn case(seed: u64, n: usize) -> Case {
+    let mut rng = Rng::new(seed);
+    let bg = common::lively_nerf(grid(), &mut rng);
+    let (p, d) = points(seed ^ 7, n);
+    let (mut s_bg, mut c_bg) = (vec![0.0; n], vec![[0.0; 3]; n]);
     let mut ctx = Default::default();
-    Model::forward(&bg.field, isa, &bg.params, p, d, &mut s, &mut c, &mut ctx);
-    (s, c)
+    Model::forward(&bg.field, common::best_fp32_isa(), &bg.params, &p, &d, &mut s_bg, &mut c_bg, &mut ctx);
+    Case { rng, bg, p, d, s_bg, c_bg }
 }
 
 proptest! {
@@ -63,11 +74,7 @@ proptest! {
     #[test]
     fn warm_start_equals_the_background(seed in 0u64..1000) {
         let isa = common::best_fp32_isa();
-        let mut rng = Rng::new(seed);
-        let bg = common::lively_nerf(grid(), &mut rng);
-        let bg = Nerf { field: bg.field, params: bg.params, occupancy: bg.occupancy };
-        let (p, d) = points(seed ^ 7, 64);
-        let (s_bg, c_bg) = background_outputs(&bg, &p, &d);
+        let Case { mut rng, bg, p, d, s_bg, c_bg } = case(seed, 64);
         for kind in [MixKind::Mixnet(DensityMix::Raw), MixKind::Mixnet(DensityMix::Activated)] {
             let f = field(&bg, kind);
             let mut params = f.warm_params(&mut rng).expect("same architecture");
@@ -92,14 +99,10 @@ proptest! {
     #[test]
     fn outside_the_region_the_field_is_the_background(seed in 0u64..1000) {
         let isa = common::best_fp32_isa();
-        let mut rng = Rng::new(seed);
-        let bg = common::lively_nerf(grid(), &mut rng);
-        let bg = Nerf { field: bg.field, params: bg.params, occupancy: bg.occupancy };
+        let Case { mut rng, bg, p, d, s_bg, c_bg } = case(seed, 96);
         // A region of a few random cells of an 8³ grid; most points fall outside.
         let cells: Vec<u32> = (0..6).map(|_| rng.below(512) as u32).collect();
         let region = ChangeRegion::from_cells(aabb(), 8, &cells).unwrap();
-        let (p, d) = points(seed ^ 11, 96);
-        let (s_bg, c_bg) = background_outputs(&bg, &p, &d);
         for kind in [MixKind::Mixnet(DensityMix::Raw), MixKind::Mixnet(DensityMix::Activated)] {
             let f = field(&bg, kind).with_region(region.clone());
             let params = Model::init_params(&f, &mut rng);
@@ -198,8 +201,7 @@ fn the_voted_region_holds_the_glass_from_the_same_and_from_other_poses() {
         let p = scene_prior(isa, &background, bgv, &scene.views, workspace::SKY, m, &cfg);
         assert_eq!(p.matched_views, if matched { 24 } else { 0 });
         assert!(p.region.contains(centre), "phase {phase}: the glass centre is outside the region");
-        let cell = p.region.aabb().size() / p.region.resolution() as f32;
-        let volume = p.region.count() as f32 * cell.x * cell.y * cell.z;
+        let volume = p.region.volume() as f32;
         let sphere = 4.0 / 3.0 * std::f32::consts::PI * radius.powi(3);
         eprintln!("phase {phase}: region {} cells, {volume:.4} m³ (glass {sphere:.4} m³)", p.region.count());
         let cs: Vec<Vec3> = p.region.cells().iter().map(|&c| p.region.cell_centre(c as usize)).collect();

@@ -187,11 +187,10 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
                 }?;
                 let m = crate::render::DensityThreshold::Sigma(crate::cli::DEFAULT_M);
                 let p = scene_prior(isa, &bg, &bg_views, &data.views, cfg.background, m, &pcfg);
-                let changed = p.focus.len() as f64 / data.views.iter().map(|v| v.rgb.len()).sum::<usize>() as f64;
                 eprintln!(
                     "rnerf train: background prior: {:.1}% of the pixels changed ({}/{} views against background \
                      images), change region {} cells",
-                    100.0 * changed,
+                    100.0 * p.changed_share(),
                     p.matched_views,
                     data.views.len(),
                     p.region.count()

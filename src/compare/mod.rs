@@ -391,14 +391,12 @@ pub fn run_scene(
     if methods.iter().any(|m| m.prior() != Prior::NONE) {
         let t0 = std::time::Instant::now();
         let p = scene_prior(isa, background, bg_views, train, cfg.train.background, cfg.m, &cfg.prior);
-        let pixels: usize = train.iter().map(|v| v.rgb.len()).sum();
-        let cell = background.occupancy.aabb().size() / background.occupancy.config().resolution as f32;
         let summary = PriorSummary {
-            changed_pixels: p.focus.len() as f64 / pixels.max(1) as f64,
+            changed_pixels: p.changed_share(),
             matched_views: p.matched_views,
             views: train.len(),
             region_cells: p.region.count(),
-            region_volume: p.region.count() as f64 * (cell.x * cell.y * cell.z) as f64,
+            region_volume: p.region.volume(),
             seconds: t0.elapsed().as_secs_f64(),
         };
         prior = Some((p, summary));

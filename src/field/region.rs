@@ -112,6 +112,17 @@ impl ChangeRegion {
         out
     }
 
+    /// The region's volume (scene units cubed).
+    pub fn volume(&self) -> f64 {
+        let cell = self.aabb.size() / self.resolution as f32;
+        self.count() as f64 * (cell.x * cell.y * cell.z) as f64
+    }
+
+    /// One bit per cell (`i / 64`, bit `i % 64`), in the occupancy grid's layout.
+    pub fn bits(&self) -> &[u64] {
+        &self.bits
+    }
+
     /// Centre of cell `i` in world coordinates.
     pub fn cell_centre(&self, i: usize) -> Vec3 {
         let r = self.resolution as usize;

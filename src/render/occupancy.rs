@@ -258,10 +258,7 @@ impl OccupancyGrid {
             region.resolution() == self.config.resolution && *region.aabb() == self.aabb,
             "occupancy: the pinned region's grid differs from the occupancy grid"
         );
-        let mut p = vec![0u64; self.bits.len()];
-        for i in region.cells() {
-            p[i as usize / 64] |= 1 << (i % 64);
-        }
+        let p = region.bits().to_vec();
         for (b, q) in self.bits.iter_mut().zip(&p) {
             *b |= q;
         }

@@ -25,7 +25,7 @@ use crate::field::residual::{ResidualConfig, ResidualField, ResidualParams};
 use crate::field::Nerf;
 use crate::render::view::Scene;
 use crate::render::OccupancyGrid;
-use crate::render::{DensityThreshold, FullOutputs, ViewRenderer};
+use crate::render::{DensityThreshold, ViewRenderer};
 use crate::rng::Rng;
 use crate::simd::Isa;
 use crate::train::model::Model;
@@ -92,6 +92,13 @@ pub struct ScenePrior {
     pub focus: Vec<(u32, u32)>,
 }
 
+impl ScenePrior {
+    /// Share of the training pixels marked changed.
+    pub fn changed_share(&self) -> f64 {
+        self.focus.len() as f64 / self.maps.iter().map(Vec::len).sum::<usize>().max(1) as f64
+    }
+}
+
 fn same_pose(a: &View, b: &View) -> bool {
     let (ka, kb) = (&a.intrinsics, &b.intrinsics);
     let same_k = ka.width == kb.width && ka.height == kb.height && ka.fx == kb.fx && ka.fy == kb.fy;
@@ -99,32 +106,36 @@ fn same_pose(a: &View, b: &View) -> bool {
     same_k && dr <= SAME_POSE && (a.pose.translation - b.pose.translation).abs().max_element() <= SAME_POSE
 }
 
-/// The background's colours at each of `views`' poses: `bg_views`' image at the same pose, else
-/// `background` rendered there (over `sky`). Returns the colours and how many were matched.
-pub fn background_colours(
+/// The background at each of `views`' poses: its colours — `bg_views`' image at the same pose,
+/// else `background` rendered there (over `sky`) — and its threshold z-depth at `m` (rendered;
+/// NaN at holes), from one render per view. Returns them and how many views were matched.
+#[allow(clippy::type_complexity)]
+fn background_at(
     isa: Isa,
     background: &Nerf,
     bg_views: &[View],
     views: &[View],
     sky: [f32; 3],
     m: DensityThreshold,
-) -> (Vec<Vec<[f32; 3]>>, usize) {
+) -> (Vec<(Vec<[f32; 3]>, Vec<f32>)>, usize) {
     let mut renderer = ViewRenderer::new();
+    let scene = Scene::from(background);
     let mut matched = 0;
     let out = views
         .iter()
-        .map(|v| match bg_views.iter().find(|b| same_pose(b, v)) {
-            Some(b) => {
-                matched += 1;
-                b.rgb.clone()
-            }
-            None => {
-                let k = &v.intrinsics;
-                let n = (k.width * k.height) as usize;
-                let (mut rgb, mut e, mut t) = (vec![[0.0; 3]; n], vec![0.0; n], vec![0.0; n]);
-                let o = FullOutputs { rgb: &mut rgb, expected_z: &mut e, threshold_z: &mut t, beta: &mut [] };
-                renderer.full(isa, &Scene::from(background), k, &v.pose, sky, m, o);
-                rgb
+        .map(|v| {
+            let k = &v.intrinsics;
+            match bg_views.iter().find(|b| same_pose(b, v)) {
+                Some(b) => {
+                    matched += 1;
+                    let mut z = vec![0.0; (k.width * k.height) as usize];
+                    renderer.depth(isa, &scene, k, &v.pose, m, &mut z);
+                    (b.rgb.clone(), z)
+                }
+                None => {
+                    let r = renderer.render(isa, &scene, k, &v.pose, sky, m);
+                    (r.rgb, r.threshold_z)
+                }
             }
         })
         .collect();
@@ -190,30 +201,17 @@ pub fn change_map(scene: &[[f32; 3]], background: &[[f32; 3]], w: u32, h: u32, c
     out
 }
 
-/// Votes the change maps into a region over the background's occupancy cells (module docs).
-/// `m` is the threshold of the background's depth surface.
+/// Votes the change maps into a region over the cells of `grid` (the background's occupancy
+/// grid), given the background's threshold z-depth per view (NaN at holes; module docs).
 pub fn vote_region(
-    isa: Isa,
-    background: &Nerf,
+    grid: &OccupancyGrid,
     views: &[View],
     maps: &[Vec<bool>],
-    m: DensityThreshold,
+    depth: &[Vec<f32>],
     cfg: &PriorConfig,
 ) -> ChangeRegion {
-    assert_eq!(views.len(), maps.len(), "prior: one change map per view");
-    let occ = &background.occupancy;
-    let (aabb, res) = (*occ.aabb(), occ.config().resolution);
-    // The background's threshold z-depth per view (NaN: a hole).
-    let mut renderer = ViewRenderer::new();
-    let depth: Vec<Vec<f32>> = views
-        .iter()
-        .map(|v| {
-            let k = &v.intrinsics;
-            let mut z = vec![0.0; (k.width * k.height) as usize];
-            renderer.depth(isa, &Scene::from(background), k, &v.pose, m, &mut z);
-            z
-        })
-        .collect();
+    assert!(views.len() == maps.len() && views.len() == depth.len(), "prior: one change map and depth per view");
+    let (aabb, res) = (*grid.aabb(), grid.config().resolution);
     let empty = ChangeRegion::empty(aabb, res);
     let margin = (aabb.size() / res as f32).length();
     let plane = (res * res) as usize;
@@ -225,7 +223,7 @@ pub fn vote_region(
             for i in z * plane..(z + 1) * plane {
                 let p: Vec3 = empty.cell_centre(i);
                 let (mut seen, mut hit) = (0u32, 0u32);
-                for ((v, map), zb) in views.iter().zip(maps).zip(&depth) {
+                for ((v, map), zb) in views.iter().zip(maps).zip(depth) {
                     let k = &v.intrinsics;
                     let c = v.pose.rotation.transpose() * (p - v.pose.translation);
                     let zc = -c.z;
@@ -272,13 +270,14 @@ pub fn scene_prior(
     m: DensityThreshold,
     cfg: &PriorConfig,
 ) -> ScenePrior {
-    let (colours, matched_views) = background_colours(isa, background, bg_views, views, sky, m);
+    let (bg, matched_views) = background_at(isa, background, bg_views, views, sky, m);
     let maps: Vec<Vec<bool>> = views
         .par_iter()
-        .zip(&colours)
-        .map(|(v, bg)| change_map(&v.rgb, bg, v.intrinsics.width, v.intrinsics.height, cfg))
+        .zip(&bg)
+        .map(|(v, (colours, _))| change_map(&v.rgb, colours, v.intrinsics.width, v.intrinsics.height, cfg))
         .collect();
-    let region = vote_region(isa, background, views, &maps, m, cfg);
+    let depth: Vec<Vec<f32>> = bg.into_iter().map(|(_, z)| z).collect();
+    let region = vote_region(&background.occupancy, views, &maps, &depth, cfg);
     let focus = maps
         .iter()
         .enumerate()
