@@ -12,13 +12,14 @@ pub const USAGE: &str = "usage: rnerf <command> [options]
 commands:
   train  --data DIR --out MODEL [--steps N] [--rays N] [--log2t N] [--seed S] [--threads N]
          [--split NAME] [--csv FILE] [--lr LR] [--distortion L] [--near-grad D] [--fixed-background] [--background BG_MODEL [--mix mixnet|sum]
-         [--density-mix raw|activated] [--mixnet-encoding own|shared] [--prior all|none|warm-start,region,focus]
-         [--background-data BG_DIR]] [--checkpoint-every N] [--scene-views N]
+         [--density-mix raw|activated] [--mixnet-encoding own|shared] [--prior all|none|warm-start,region,focus,beta]
+         [--background-data BG_DIR] [--beta U,E]] [--checkpoint-every N] [--scene-views N]
          train a NeRF on DIR's transforms_<split>.json (default split: train); with --background,
          a Residual-NeRF (residual + Mixnet over the frozen background; --mix sum: Residual-NeRF-S),
          by default background-aware (--prior all: start at the background, a change region voted
          from change maps against BG_DIR's images at the same poses or the rendered background,
-         half the rays from changed pixels; --prior none: the paper's Residual-NeRF).
+         half the rays from changed pixels, the β regularisers at --beta's weights, default 0,0:
+         penalty on unchanged rays, entropy; --prior none: the paper's Residual-NeRF).
          Checkpoints go to MODEL with '.ckpt' before the extension (every N steps, and on
          SIGINT/SIGTERM, which then exit 130/143); a finished run removes its checkpoint
   train  --resume CHECKPOINT --data DIR --out MODEL [--split NAME] [--csv FILE] [--threads N]
@@ -34,9 +35,12 @@ commands:
   compare --background DIR --scene DIR [--scene DIR ...] --out DIR [--background-model MODEL]
          [--methods dex,finetune,residual-paper,residual,...] [--scene-views N] [--steps N] [--rays N]
          [--log2t N] [--seed S] [--eval-every N] [--m M | --m-raw S] [--m-sweep M,M,...] [--threads N]
+         [--beta U,E]
          (--m-sweep: also score the final models at these σ thresholds, default 3,10,20,40;
+         --beta: weights of the background-aware methods' β penalty and entropy;
          methods: dex, finetune, residual, residual-no-warm-start, residual-no-region,
-         residual-no-focus, residual-paper, residual-paper-activated, residual-paper-shared,
+         residual-no-focus, residual-no-beta, residual-activated, residual-activated-no-warm-start,
+         residual-paper, residual-paper-activated, residual-paper-shared,
          residual-paper-activated-shared, residual-s)
          the paper's protocol and more: train the background on DIR (or load MODEL), then per scene
          Dex-NeRF (and NeRF's expected depth), the fine-tuned background, the paper's Residual-NeRF
@@ -199,6 +203,8 @@ pub struct TrainArgs {
     /// The background's dataset, whose images at the scene's poses give the change maps
     /// (`--background-data`; without it the background model is rendered at those poses).
     pub background_data: Option<PathBuf>,
+    /// Weights of the β penalty on unchanged rays and of the β entropy (`--beta U,E`).
+    pub beta: Option<(f32, f32)>,
 }
 
 /// Arguments of `rnerf compare`.
@@ -234,6 +240,8 @@ pub struct CompareArgs {
     pub m_sweep: Vec<crate::render::DensityThreshold>,
     /// Worker threads (`--threads`).
     pub threads: Option<usize>,
+    /// Weights of the β penalty on unchanged rays and of the β entropy (`--beta U,E`).
+    pub beta: Option<(f32, f32)>,
 }
 
 /// A command-line error: one line saying what is wrong and where.
@@ -297,6 +305,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             "scene-views",
             "prior",
             "background-data",
+            "beta",
         ],
         "render" => &["model", "data", "out", "split", "depth", "m", "m-raw", "threads"],
         "eval" => &["model", "data", "split", "depth", "m", "m-raw", "crop", "limit", "json", "threads"],
@@ -316,6 +325,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             "m-sweep",
             "threads",
             "scene-views",
+            "beta",
         ],
         "demo" => &["out", "steps", "seed", "threads"],
         "bench" => &["json", "reps", "log2t", "threads", "model", "data"],
@@ -377,6 +387,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             scene_views: f.scene_views,
             prior: f.prior_hints()?,
             background_data: f.background_data.clone(),
+            beta: f.beta,
         }),
         "render" => Command::Render {
             model: f.need_path("model", &command)?,
@@ -420,6 +431,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
                 DEFAULT_M_SWEEP.iter().map(|&v| crate::render::DensityThreshold::Sigma(v)).collect()
             }),
             threads,
+            beta: f.beta,
         }),
         "demo" => Command::Demo { out: f.out.clone(), steps: f.steps, seed: f.seed, threads },
         _ => {
@@ -479,6 +491,7 @@ struct Flags {
     scene_views: Option<usize>,
     prior: Option<crate::train::prior::Prior>,
     background_data: Option<PathBuf>,
+    beta: Option<(f32, f32)>,
     /// Flags given, in order.
     given: Vec<String>,
 }
@@ -499,16 +512,28 @@ impl Flags {
                             "warm-start" => h.warm_start = true,
                             "region" => h.region = true,
                             "focus" => h.focus = true,
+                            "beta" => h.beta = true,
                             "all" => h = crate::train::prior::Prior::ALL,
                             _ => {
                                 return Err(err(format!(
-                                    "--prior: '{part}' is not all, none, warm-start, region or focus"
+                                    "--prior: '{part}' is not all, none, warm-start, region, focus or beta"
                                 )))
                             }
                         }
                     }
                 }
                 self.prior = Some(h);
+            }
+            "beta" => {
+                let s = text(p, name)?;
+                let v: Vec<Option<f32>> = s
+                    .split(',')
+                    .map(|x| x.parse::<f32>().ok().filter(|v| v.is_finite() && (0.0..=1e6).contains(v)))
+                    .collect();
+                match v[..] {
+                    [Some(u), Some(e)] => self.beta = Some((u, e)),
+                    _ => return Err(err(format!("--beta: '{s}' is not two weights U,E in [0, 1e6]"))),
+                }
             }
             "resume" => self.resume = Some(path(p, name)?),
             "json" => self.json = true,

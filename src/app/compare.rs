@@ -103,7 +103,7 @@ pub(super) fn run(a: &crate::cli::CompareArgs) -> Result<(), String> {
         mixnet_grid: crate::field::mixnet::default_mixnet_grid(),
         m: a.m,
         m_sweep: a.m_sweep.clone(),
-        prior: Default::default(),
+        prior: prior_config(a.beta),
     };
     let isa = Isa::detect();
     eprintln!(
@@ -308,4 +308,13 @@ pub(super) fn demo(out: &Path, steps: Option<u32>, seed: Option<u64>) -> Result<
         out.join("glass/depth_0.png").display()
     );
     Ok(())
+}
+
+/// The prior's settings with `--beta U,E` applied.
+pub fn prior_config(beta: Option<(f32, f32)>) -> crate::train::prior::PriorConfig {
+    let mut p = crate::train::prior::PriorConfig::default();
+    if let Some((unchanged, entropy)) = beta {
+        (p.beta.unchanged, p.beta.entropy) = (unchanged, entropy);
+    }
+    p
 }

@@ -13,7 +13,7 @@ use crate::io::{
 };
 use crate::render::Aabb;
 use crate::simd::Isa;
-use crate::train::prior::{residual_start, scene_prior, Prior, PriorConfig};
+use crate::train::prior::{residual_start, scene_prior, Prior};
 use crate::train::trainer::{TrainConfig, Trainer};
 use signal_hook::consts::{SIGINT, SIGTERM};
 use std::fmt::Write as _;
@@ -176,7 +176,7 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
             );
             extra.push(("background_file", bg_path.display().to_string()));
             extra.push(("train_prior", format!("{hints:?}")));
-            let pcfg = PriorConfig::default();
+            let pcfg = crate::app::compare::prior_config(a.beta);
             let prior = (hints != Prior::NONE).then(|| {
                 let bg_views = match &a.background_data {
                     Some(dir) => {
@@ -201,6 +201,7 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
             let config = ResidualConfig { residual: field, kind, mixnet };
             let start = residual_start(&bg, config, hints, prior.as_ref(), &cfg, &pcfg);
             cfg.focus = start.focus;
+            cfg.beta = start.beta;
             let model = start.field;
             let trainer = Trainer::starting_at(isa, &model, &data.views, &cfg, start.params, start.occupancy);
             drive(a, &model, trainer, &extra)

@@ -111,7 +111,7 @@ const ACTIVATED: MixKind = MixKind::Mixnet(DensityMix::Activated);
 
 /// Every method with its name (file names, json, `--methods`) and label (tables, plots), in
 /// table order.
-const ALL: [(Method, &str, &str); 12] = [
+const ALL: [(Method, &str, &str); 14] = [
     (Method::Dex, "dex", "Dex-NeRF"),
     (Method::FineTune, "finetune", "Fine-tuned background"),
     (Method::RESIDUAL, "residual", "Residual-NeRF"),
@@ -122,7 +122,13 @@ const ALL: [(Method, &str, &str); 12] = [
     ),
     (residual(RAW, false, Prior { region: false, ..Prior::ALL }), "residual-no-region", "Residual-NeRF (no region)"),
     (residual(RAW, false, Prior { focus: false, ..Prior::ALL }), "residual-no-focus", "Residual-NeRF (no focus)"),
+    (residual(RAW, false, Prior { beta: false, ..Prior::ALL }), "residual-no-beta", "Residual-NeRF (no β terms)"),
     (residual(ACTIVATED, false, Prior::ALL), "residual-activated", "Residual-NeRF (activated mix)"),
+    (
+        residual(ACTIVATED, false, Prior { warm_start: false, ..Prior::ALL }),
+        "residual-activated-no-warm-start",
+        "Residual-NeRF (activated, no warm start)",
+    ),
     (Method::RESIDUAL_PAPER, "residual-paper", "Residual-NeRF (paper)"),
     (residual(ACTIVATED, false, Prior::NONE), "residual-paper-activated", "Residual-NeRF (paper, activated mix)"),
     (residual(RAW, true, Prior::NONE), "residual-paper-shared", "Residual-NeRF (paper, shared encoding)"),
@@ -418,6 +424,7 @@ pub fn run_scene(
                     let start = residual_start(background, config, hints, p, &cfg.train, &cfg.prior);
                     let mut mcfg = cfg.clone();
                     mcfg.train.focus = start.focus;
+                    mcfg.train.beta = start.beta;
                     let init = Some((start.params, start.occupancy));
                     run_method(isa, method, &start.field, init, train, test, &mcfg, log)
                 }

@@ -22,6 +22,21 @@ use rayon::prelude::*;
 pub const SKY: [f32; 3] = [0.7, 0.78, 0.9];
 /// Glass sphere: centre, radius (resting on the table).
 pub const GLASS: (Vec3, f32) = (Vec3::new(0.05, -0.08, 0.16), 0.16);
+/// Tall glass: a solid vertical glass cylinder standing on the table where the sphere rests:
+/// axis (x, y), radius, height. It reaches 0.1 m above the sphere's top, into air that is
+/// empty in the background.
+pub const TALL_GLASS: (f32, f32, f32, f32) = (0.05, -0.08, 0.05, 0.42);
+
+/// The glass object a scene holds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Glass {
+    /// None: the empty workspace (the background).
+    None,
+    /// The glass sphere [`GLASS`].
+    Sphere,
+    /// The tall thin glass [`TALL_GLASS`].
+    Tall,
+}
 /// Index of refraction of the glass.
 pub const GLASS_IOR: f32 = 1.5;
 /// Point every camera looks at.
@@ -88,14 +103,52 @@ fn sphere(ray: &Ray, (c, r): (Vec3, f32)) -> Option<(f32, Vec3)> {
     (t > EPS).then(|| (t, (ray.at(t) - c) / r))
 }
 
+/// Nearest hit `t > EPS` of the solid glass cylinder [`TALL_GLASS`] (side and both caps; works
+/// from inside), with the outward normal.
+fn tall_glass(ray: &Ray) -> Option<(f32, Vec3)> {
+    let (cx, cy, r, h) = TALL_GLASS;
+    let (z0, z1) = (1e-3, h);
+    let (o, d) = (ray.origin, ray.dir);
+    let mut best: Option<(f32, Vec3)> = None;
+    let mut take = |t: f32, n: Vec3| {
+        if t > EPS && best.is_none_or(|b| t < b.0) {
+            best = Some((t, n));
+        }
+    };
+    let (ox, oy) = (o.x - cx, o.y - cy);
+    let qa = d.x * d.x + d.y * d.y;
+    if qa > 0.0 {
+        let qb = ox * d.x + oy * d.y;
+        let disc = qb * qb - qa * (ox * ox + oy * oy - r * r);
+        if disc > 0.0 {
+            for t in [(-qb - disc.sqrt()) / qa, (-qb + disc.sqrt()) / qa] {
+                let p = ray.at(t);
+                if p.z >= z0 && p.z <= z1 {
+                    take(t, Vec3::new(p.x - cx, p.y - cy, 0.0) / r);
+                }
+            }
+        }
+    }
+    if d.z != 0.0 {
+        for (z, n) in [(z0, -Vec3::Z), (z1, Vec3::Z)] {
+            let t = (z - o.z) / d.z;
+            let p = ray.at(t);
+            if (p.x - cx).powi(2) + (p.y - cy).powi(2) <= r * r {
+                take(t, n);
+            }
+        }
+    }
+    best
+}
+
 fn keep(best: &mut Option<Hit>, t: f32, normal: Vec3, surface: Surface) {
     if t > EPS && best.is_none_or(|b| t < b.t) {
         *best = Some(Hit { t, normal, surface });
     }
 }
 
-/// The nearest surface along `ray` (glass included when `glass`).
-fn intersect(ray: &Ray, glass: bool) -> Option<Hit> {
+/// The nearest surface along `ray` (with the `glass` object).
+fn intersect(ray: &Ray, glass: Glass) -> Option<Hit> {
     let mut best = None;
     let (o, d) = (ray.origin, ray.dir);
     // Table top (z = 0) and floor.
@@ -184,10 +237,13 @@ fn intersect(ray: &Ray, glass: bool) -> Option<Hit> {
             keep(&mut best, t, Vec3::Z, Surface::Diffuse([0.85, 0.85, 0.8]));
         }
     }
-    if glass {
-        if let Some((t, n)) = sphere(ray, GLASS) {
-            keep(&mut best, t, n, Surface::Glass);
-        }
+    let object = match glass {
+        Glass::None => None,
+        Glass::Sphere => sphere(ray, GLASS),
+        Glass::Tall => tall_glass(ray),
+    };
+    if let Some((t, n)) = object {
+        keep(&mut best, t, n, Surface::Glass);
     }
     best
 }
@@ -205,8 +261,8 @@ fn fresnel(cos_i: f32, n1: f32, n2: f32) -> f32 {
     0.5 * (rs * rs + rp * rp)
 }
 
-/// Colour seen along `ray` (glass present when `glass`).
-fn shade(ray: &Ray, glass: bool, depth: u32) -> [f32; 3] {
+/// Colour seen along `ray` (with the `glass` object).
+fn shade(ray: &Ray, glass: Glass, depth: u32) -> [f32; 3] {
     let Some(hit) = intersect(ray, glass) else {
         return SKY;
     };
@@ -246,6 +302,11 @@ fn shade(ray: &Ray, glass: bool, depth: u32) -> [f32; 3] {
 /// Renders `n_views` views of `size × size` of the workspace, with the glass sphere when
 /// `glass`, cameras at azimuths offset by `phase` (radians). Deterministic; parallel over views.
 pub fn workspace(size: u32, n_views: usize, phase: f32, glass: bool) -> SynthScene {
+    workspace_with(size, n_views, phase, if glass { Glass::Sphere } else { Glass::None })
+}
+
+/// [`workspace`] with any [`Glass`] object.
+pub fn workspace_with(size: u32, n_views: usize, phase: f32, glass: Glass) -> SynthScene {
     let k = Intrinsics::from_fov_x(size, size, 50f32.to_radians());
     let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
     let rendered: Vec<(View, Vec<f32>, Vec<bool>)> = (0..n_views)

@@ -108,9 +108,19 @@ pub struct ResidualChunk {
     d_s_res: Vec<f32>,
     d_c_res: Vec<[f32; 3]>,
     d_m: Vec<f32>,
+    /// β of the kept rows, and extra dL/dβ (a regulariser's) for the backward to add.
+    beta: Vec<f32>,
+    d_beta: Vec<f32>,
 }
 
 impl ResidualChunk {
+    /// β of the kept rows of the last [`ResidualField::chunk_colour`] and a zeroed buffer of
+    /// extra dL/dβ that [`ResidualField::chunk_backward`] adds to the Mixnet's gradient
+    /// ([`crate::train::beta`]).
+    pub fn beta_and_grad(&mut self) -> (&[f32], &mut [f32]) {
+        (&self.beta, &mut self.d_beta)
+    }
+
     /// The residual's chunk state (its rows' unit positions for the grid's backward).
     pub fn residual(&self) -> &FieldChunk {
         &self.res
@@ -476,6 +486,10 @@ impl ResidualField {
         for (o, out) in rgb.iter_mut().zip(&c.outputs) {
             *o = out.rgb;
         }
+        c.beta.clear();
+        c.beta.extend(c.outputs.iter().map(|o| o.beta));
+        c.d_beta.clear();
+        c.d_beta.resize(n, 0.0);
     }
 
     /// Chunk backward: dL/dσ and dL/dc of the kept rows → the residual's and the Mixnet's
@@ -494,6 +508,10 @@ impl ResidualField {
         let n = c.inputs.len();
         assert!(d_sigma.len() == n && d_rgb.len() == n, "residual: gradient buffers differ from the kept rows");
         mix_backward_rows(self.kind, &c.inputs, &c.outputs, d_sigma, d_rgb, &mut c.d_s_res, &mut c.d_c_res, &mut c.d_m);
+        // A regulariser's dL/dβ, through β = sigmoid(m) (0 where β is exactly 0 or 1).
+        for ((d_m, &d_b), &b) in c.d_m.iter_mut().zip(&c.d_beta).zip(&c.beta) {
+            *d_m += d_b * b * (1.0 - b);
+        }
         let mixnet = matches!(self.kind, MixKind::Mixnet(_));
         let shared = self.mixnet.grid().is_none();
         if mixnet {

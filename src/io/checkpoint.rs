@@ -221,6 +221,7 @@ pub fn train_config_json(c: &TrainConfig) -> Value {
         "occupancy_interval": c.occupancy_interval,
         "background": c.background, "random_background": c.random_background,
         "seed": c.seed, "distortion": c.distortion, "near_gradient_distance": c.near_gradient_distance,
+        "beta_unchanged": c.beta.unchanged, "beta_entropy": c.beta.entropy, "beta_entropy_from": c.beta.entropy_from,
     })
 }
 
@@ -239,6 +240,8 @@ pub fn parse_train_config(v: &Value, occupancy: OccupancyConfig) -> Result<Train
             .map(|x| x as f32)
             .ok_or(format!("'{k}' missing or not in [{lo}, {hi}]"))
     };
+    // Fields added after the first checkpoints: absent means 0 (off).
+    let optional = |v: &Value, k: &str, hi: f64| if v.get(k).is_none() { Ok(0.0) } else { real(v, k, 0.0, hi) };
     let s = v.get("schedule").ok_or("'schedule' missing")?;
     let schedule = LrSchedule {
         base: real(s, "base", 0.0, 1.0)?,
@@ -268,8 +271,34 @@ pub fn parse_train_config(v: &Value, occupancy: OccupancyConfig) -> Result<Train
         seed: uint(v, "seed", 0, u64::MAX)?,
         distortion: real(v, "distortion", 0.0, 1e6)?,
         near_gradient_distance: real(v, "near_gradient_distance", 0.0, 1e6)?,
-        // Focus pixels are derived from the data (the residual prior), not saved: the caller
-        // sets them again on resuming.
+        // The focus pixels are tensors beside this JSON ([`read_checkpoint`] reads them).
         focus: None,
+        beta: crate::train::beta::BetaRegulariser {
+            unchanged: optional(v, "beta_unchanged", 1e6)?,
+            entropy: optional(v, "beta_entropy", 1e6)?,
+            entropy_from: optional(v, "beta_entropy_from", 1.0)?,
+        },
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_train_config_survives_its_json_with_the_beta_weights() {
+        let mut c = TrainConfig::with_steps(300);
+        c.beta = crate::train::beta::BetaRegulariser { unchanged: 0.25, entropy: 0.5, entropy_from: 0.75 };
+        c.seed = 7;
+        let back = parse_train_config(&train_config_json(&c), c.occupancy.clone()).unwrap();
+        assert_eq!(back.beta, c.beta);
+        assert_eq!((back.steps, back.seed, back.schedule), (c.steps, c.seed, c.schedule.clone()));
+        // A checkpoint written before the β weights existed reads them as off.
+        let mut old = train_config_json(&c);
+        for k in ["beta_unchanged", "beta_entropy", "beta_entropy_from"] {
+            old.as_object_mut().unwrap().remove(k);
+        }
+        let back = parse_train_config(&old, c.occupancy.clone()).unwrap();
+        assert_eq!(back.beta, Default::default());
+    }
 }

@@ -2,6 +2,7 @@
 //! the trainer loop over any [`model::Model`] (a NeRF, or a residual model).
 
 pub mod adam;
+pub mod beta;
 pub mod field_fit;
 pub mod model;
 pub mod prior;

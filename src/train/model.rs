@@ -136,6 +136,12 @@ pub trait Model: Sync {
     fn groups<'a>(&self, p: &'a mut Self::Params, g: &'a Self::Grads) -> Vec<ParamGroup<'a>>;
     /// Re-derives what the optimiser's writes made stale (the MLPs' transposed copies).
     fn after_step(&self, p: &mut Self::Params);
+    /// β of the kept rows of the last [`Model::chunk_colour`] and a zeroed buffer of extra
+    /// dL/dβ (a regulariser's, [`crate::train::beta`]) that [`Model::chunk_backward`] adds;
+    /// `None` for models without a Mixnet.
+    fn chunk_beta<'c>(&self, _c: &'c mut Self::Chunk) -> Option<(&'c [f32], &'c mut [f32])> {
+        None
+    }
     /// β per sample of the last forward into `out` (empty for models without a Mixnet).
     fn betas(&self, _ctx: &Self::Context, out: &mut Vec<f32>) {
         out.clear();
@@ -499,6 +505,10 @@ impl Model for ResidualField {
             grid_group(&mut m.grid, &g.mixnet.grid),
             ParamGroup { master: m.mlp.weights_mut(), grad: &g.mixnet.mlp, mirror: None, l2: MLP_L2 },
         ]
+    }
+
+    fn chunk_beta<'c>(&self, c: &'c mut ResidualChunk) -> Option<(&'c [f32], &'c mut [f32])> {
+        matches!(self.kind(), MixKind::Mixnet(_)).then(|| c.beta_and_grad())
     }
 
     fn betas(&self, ctx: &ResidualContext, out: &mut Vec<f32>) {

@@ -28,6 +28,7 @@ use crate::render::OccupancyGrid;
 use crate::render::{DensityThreshold, ViewRenderer};
 use crate::rng::Rng;
 use crate::simd::Isa;
+use crate::train::beta::BetaRegulariser;
 use crate::train::model::Model;
 use crate::train::trainer::View;
 use crate::train::trainer::{Focus, TrainConfig};
@@ -63,7 +64,13 @@ pub struct PriorConfig {
     pub region_dilate: u32,
     /// Share of each step's rays drawn from changed pixels. Defaults to 0.5.
     pub change_share: f32,
+    /// The β regularisers ([`crate::train::beta`]); the unchanged-ray penalty reads the change
+    /// maps. Defaults to [`DEFAULT_BETA`].
+    pub beta: BetaRegulariser,
 }
+
+/// Default β regularisers (measured on the dev scenes: docs/DECISIONS.md).
+pub const DEFAULT_BETA: BetaRegulariser = BetaRegulariser { unchanged: 0.0, entropy: 0.0, entropy_from: 0.5 };
 
 impl Default for PriorConfig {
     fn default() -> Self {
@@ -75,6 +82,7 @@ impl Default for PriorConfig {
             holes_see: true,
             region_dilate: 1,
             change_share: 0.5,
+            beta: DEFAULT_BETA,
         }
     }
 }
@@ -296,13 +304,15 @@ pub struct Prior {
     pub region: bool,
     /// Draw [`PriorConfig::change_share`] of the rays from changed pixels.
     pub focus: bool,
+    /// The β regularisers of [`PriorConfig::beta`].
+    pub beta: bool,
 }
 
 impl Prior {
     /// None: the paper's Residual-NeRF.
-    pub const NONE: Prior = Prior { warm_start: false, region: false, focus: false };
+    pub const NONE: Prior = Prior { warm_start: false, region: false, focus: false, beta: false };
     /// All: the background-aware Residual-NeRF (the default).
-    pub const ALL: Prior = Prior { warm_start: true, region: true, focus: true };
+    pub const ALL: Prior = Prior { warm_start: true, region: true, focus: true, beta: true };
 }
 
 /// Where a residual model's training starts.
@@ -313,8 +323,11 @@ pub struct ResidualStart {
     pub params: ResidualParams,
     /// Initial occupancy grid (the region's cells pinned).
     pub occupancy: OccupancyGrid,
-    /// The focus pixels for [`TrainConfig::focus`], when the hints ask for them.
+    /// The focus pixels for [`TrainConfig::focus`], when the hints ask for them or for the β
+    /// penalty (which reads them as the change maps; share 0 without the focus hint).
     pub focus: Option<Focus>,
+    /// The β regularisers for [`TrainConfig::beta`] (off without the hint).
+    pub beta: BetaRegulariser,
 }
 
 /// The start of a residual model over `background` with `config` and `hints`, the scene's
@@ -351,9 +364,11 @@ pub fn residual_start(
             occupancy.pin(region);
         }
     }
-    let focus = match (hints.focus, prior) {
-        (true, Some(p)) => Some(Focus { share: pcfg.change_share, pixels: std::sync::Arc::new(p.focus.clone()) }),
+    let share = if hints.focus { pcfg.change_share } else { 0.0 };
+    let focus = match (hints.focus || hints.beta, prior) {
+        (true, Some(p)) => Some(Focus { share, pixels: std::sync::Arc::new(p.focus.clone()) }),
         _ => None,
     };
-    ResidualStart { field, params, occupancy, focus }
+    let beta = if hints.beta { pcfg.beta } else { BetaRegulariser::default() };
+    ResidualStart { field, params, occupancy, focus, beta }
 }

@@ -32,6 +32,7 @@ use crate::render::{
 };
 use crate::rng::Rng;
 use crate::simd::Isa;
+use crate::train::beta::{beta_terms, BetaRegulariser};
 use crate::train::model::Model;
 use crate::train::slots::{slot_range, SLOTS};
 use crate::train::{Adam, AdamConfig, LrSchedule};
@@ -83,6 +84,9 @@ pub struct TrainConfig {
     /// Pixels to draw a share of each step's rays from (a residual model's changed pixels,
     /// [`crate::train::prior`]). Defaults to none: every ray uniform over all pixels.
     pub focus: Option<Focus>,
+    /// The β regularisers of a residual model (the unchanged-ray penalty needs [`Self::focus`]:
+    /// a pixel outside its list is unchanged). Defaults to off.
+    pub beta: BetaRegulariser,
 }
 
 /// A share of each step's rays drawn uniformly from a fixed list of pixels.
@@ -122,6 +126,7 @@ impl TrainConfig {
             distortion: DISTORTION,
             near_gradient_distance: NEAR_GRADIENT_DISTANCE,
             focus: None,
+            beta: BetaRegulariser::default(),
         }
     }
 }
@@ -168,6 +173,8 @@ struct StepRays {
     rays: Vec<Ray>,
     targets: Vec<[f32; 3]>,
     backgrounds: Vec<[f32; 3]>,
+    /// Whether each ray's pixel is known unchanged (the β penalty's rays).
+    unchanged: Vec<bool>,
 }
 
 /// Marched samples a chunk of the fused step holds at least (it takes whole rays, so it ends
@@ -227,6 +234,8 @@ struct StepInputs<'a, M: Model> {
     params: &'a M::Params,
     occupancy: &'a OccupancyGrid,
     cfg: &'a TrainConfig,
+    /// This step's β entropy weight (0 before [`BetaRegulariser::entropy_from`]).
+    entropy: f32,
 }
 
 impl<C> Worker<C> {
@@ -335,6 +344,10 @@ impl<C> Worker<C> {
         self.d_sigma.resize(k, 0.0);
         self.d_rgb.resize(k, [0.0; 3]);
         let scale = 2.0 / (3 * cfg.rays_per_step) as f32;
+        let mut beta = match cfg.beta.is_on() && k > 0 {
+            true => x.model.chunk_beta(&mut self.chunk),
+            false => None,
+        };
         for (ray, &(s0, count)) in range.zip(&self.kept) {
             let r = s0 as usize..(s0 + count) as usize;
             let (sigma, delta, t) = (&self.sigma[r.clone()], &m.delta[r.clone()], &m.t[r.clone()]);
@@ -346,6 +359,14 @@ impl<C> Worker<C> {
             if cfg.distortion > 0.0 {
                 let weight = cfg.distortion / cfg.rays_per_step as f32;
                 distortion_backward(sigma, delta, t, weight, d_s, &mut self.scratch);
+            }
+            if let Some((beta, d_beta)) = &mut beta {
+                let unchanged = if rays.unchanged[ray] { cfg.beta.unchanged } else { 0.0 };
+                if unchanged > 0.0 || x.entropy > 0.0 {
+                    let weight = 1.0 / cfg.rays_per_step as f32;
+                    let (b, d_b) = (&beta[r.clone()], &mut d_beta[r.clone()]);
+                    beta_terms(sigma, delta, b, unchanged * weight, x.entropy * weight, d_b);
+                }
             }
             if cfg.near_gradient_distance > 0.0 {
                 scale_near_gradients(t, cfg.near_gradient_distance, d_s, d_c);
@@ -482,6 +503,8 @@ pub struct Trainer<'a, M: Model> {
     workers: Vec<Worker<M::Chunk>>,
     slots: Vec<M::Slot>,
     ctx: M::Context,
+    /// Per view, a bitset of the focus pixels (the changed ones), when there is a focus.
+    changed: Vec<Vec<u64>>,
     bad_in_a_row: u32,
     empty_in_a_row: u32,
 }
@@ -548,6 +571,19 @@ impl<'a, M: Model> Trainer<'a, M> {
                 return Err(format!("focus pixel {p} of view {v} is outside the training views"));
             }
         }
+        let changed = match &cfg.focus {
+            Some(f) => {
+                let mut bits: Vec<Vec<u64>> = views
+                    .iter()
+                    .map(|v| vec![0u64; (v.intrinsics.width as usize * v.intrinsics.height as usize).div_ceil(64)])
+                    .collect();
+                for &(v, p) in f.pixels.iter() {
+                    bits[v as usize][p as usize / 64] |= 1 << (p % 64);
+                }
+                bits
+            }
+            None => Vec::new(),
+        };
         let (rays, ctx) = (StepRays::default(), M::Context::default());
         let workers = (0..SLOTS).map(|_| Worker::default()).collect();
         let slots = (0..SLOTS).map(|_| M::Slot::default()).collect();
@@ -562,6 +598,7 @@ impl<'a, M: Model> Trainer<'a, M> {
             workers,
             slots,
             ctx,
+            changed,
             bad_in_a_row: 0,
             empty_in_a_row: 0,
         })
@@ -612,7 +649,7 @@ impl<'a, M: Model> Trainer<'a, M> {
 
     fn step_inner(&mut self) -> Result<StepStats, TrainError> {
         let (isa, model, views, cfg) = (self.isa, self.model, self.views, self.cfg);
-        let Trainer { state, grads, rays, workers, slots, ctx, bad_in_a_row, empty_in_a_row, .. } = self;
+        let Trainer { state, grads, rays, workers, slots, ctx, changed, bad_in_a_row, empty_in_a_row, .. } = self;
         let step = state.step;
         let params = &mut state.params;
         let occupancy = &mut state.occupancy;
@@ -626,21 +663,22 @@ impl<'a, M: Model> Trainer<'a, M> {
         rays.rays.clear();
         rays.targets.clear();
         rays.backgrounds.clear();
+        rays.unchanged.clear();
         let focused = match &cfg.focus {
             Some(f) if !f.pixels.is_empty() => (f.share.clamp(0.0, 1.0) * cfg.rays_per_step as f32).round() as usize,
             _ => 0,
         };
         for r in 0..cfg.rays_per_step {
-            let (v, p) = match &cfg.focus {
-                Some(f) if r < focused => {
-                    let (v, p) = f.pixels[srng.below(f.pixels.len() as u64) as usize];
-                    (&views[v as usize], p)
-                }
+            let (vi, p) = match &cfg.focus {
+                Some(f) if r < focused => f.pixels[srng.below(f.pixels.len() as u64) as usize],
                 _ => {
-                    let v = &views[srng.below(views.len() as u64) as usize];
-                    (v, srng.below(v.intrinsics.width as u64 * v.intrinsics.height as u64) as u32)
+                    let vi = srng.below(views.len() as u64) as u32;
+                    let v = &views[vi as usize];
+                    (vi, srng.below(v.intrinsics.width as u64 * v.intrinsics.height as u64) as u32)
                 }
             };
+            let v = &views[vi as usize];
+            rays.unchanged.push(changed.get(vi as usize).is_some_and(|b| b[p as usize / 64] >> (p % 64) & 1 == 0));
             let w = v.intrinsics.width;
             rays.rays.push(pixel_ray(&v.intrinsics, &v.pose, p % w, p / w));
             rays.targets.push(v.rgb[p as usize]);
@@ -651,7 +689,11 @@ impl<'a, M: Model> Trainer<'a, M> {
         }
         // 2. The fused pass: each slot's rays, chunk by chunk, marched, evaluated, composited
         //    and back-propagated to the networks' and the grids' feature gradients.
-        let inputs = StepInputs { isa, model, params: &*params, occupancy: &*occupancy, cfg };
+        let entropy = match step as f32 >= cfg.beta.entropy_from * cfg.steps as f32 {
+            true => cfg.beta.entropy,
+            false => 0.0,
+        };
+        let inputs = StepInputs { isa, model, params: &*params, occupancy: &*occupancy, cfg, entropy };
         let rays = &*rays;
         workers
             .par_iter_mut()
