@@ -13,7 +13,8 @@ commands:
   train  --data DIR --out MODEL [--steps N] [--rays N] [--log2t N] [--seed S] [--threads N]
          [--split NAME] [--csv FILE] [--lr LR] [--distortion L] [--near-grad D] [--fixed-background] [--background BG_MODEL [--mix mixnet|sum]
          [--density-mix raw|activated] [--mixnet-encoding own|shared] [--prior all|none|warm-start,region,focus,beta]
-         [--background-data BG_DIR] [--beta U,E]] [--checkpoint-every N] [--scene-views N]
+         [--background-data BG_DIR] [--beta U,E] [--region-floor S|off]] [--checkpoint-every N]
+         [--scene-views N]
          train a NeRF on DIR's transforms_<split>.json (default split: train); with --background,
          a Residual-NeRF (residual + Mixnet over the frozen background; --mix sum: Residual-NeRF-S),
          by default background-aware (--prior all: start at the background, a change region voted
@@ -35,9 +36,10 @@ commands:
   compare --background DIR --scene DIR [--scene DIR ...] --out DIR [--background-model MODEL]
          [--methods dex,finetune,residual-paper,residual,...] [--scene-views N] [--steps N] [--rays N]
          [--log2t N] [--seed S] [--eval-every N] [--m M | --m-raw S] [--m-sweep M,M,...] [--threads N]
-         [--beta U,E]
+         [--beta U,E] [--region-floor S|off]
          (--m-sweep: also score the final models at these σ thresholds, default 3,10,20,40;
          --beta: weights of the background-aware methods' β penalty and entropy;
+         --region-floor: lift the warm-started residual's raw density in the change region to S;
          methods: dex, finetune, residual, residual-no-warm-start, residual-no-region,
          residual-no-focus, residual-no-beta, residual-activated, residual-activated-no-warm-start,
          residual-paper, residual-paper-activated, residual-paper-shared,
@@ -205,6 +207,8 @@ pub struct TrainArgs {
     pub background_data: Option<PathBuf>,
     /// Weights of the β penalty on unchanged rays and of the β entropy (`--beta U,E`).
     pub beta: Option<(f32, f32)>,
+    /// The residual's density floor in the change region (`--region-floor S|off`).
+    pub region_floor: Option<Option<f32>>,
 }
 
 /// Arguments of `rnerf compare`.
@@ -242,6 +246,8 @@ pub struct CompareArgs {
     pub threads: Option<usize>,
     /// Weights of the β penalty on unchanged rays and of the β entropy (`--beta U,E`).
     pub beta: Option<(f32, f32)>,
+    /// The residual's density floor in the change region (`--region-floor S|off`).
+    pub region_floor: Option<Option<f32>>,
 }
 
 /// A command-line error: one line saying what is wrong and where.
@@ -306,6 +312,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             "prior",
             "background-data",
             "beta",
+            "region-floor",
         ],
         "render" => &["model", "data", "out", "split", "depth", "m", "m-raw", "threads"],
         "eval" => &["model", "data", "split", "depth", "m", "m-raw", "crop", "limit", "json", "threads"],
@@ -326,6 +333,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             "threads",
             "scene-views",
             "beta",
+            "region-floor",
         ],
         "demo" => &["out", "steps", "seed", "threads"],
         "bench" => &["json", "reps", "log2t", "threads", "model", "data"],
@@ -388,6 +396,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             prior: f.prior_hints()?,
             background_data: f.background_data.clone(),
             beta: f.beta,
+            region_floor: f.region_floor,
         }),
         "render" => Command::Render {
             model: f.need_path("model", &command)?,
@@ -432,6 +441,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             }),
             threads,
             beta: f.beta,
+            region_floor: f.region_floor,
         }),
         "demo" => Command::Demo { out: f.out.clone(), steps: f.steps, seed: f.seed, threads },
         _ => {
@@ -492,6 +502,7 @@ struct Flags {
     prior: Option<crate::train::prior::Prior>,
     background_data: Option<PathBuf>,
     beta: Option<(f32, f32)>,
+    region_floor: Option<Option<f32>>,
     /// Flags given, in order.
     given: Vec<String>,
 }
@@ -534,6 +545,15 @@ impl Flags {
                     [Some(u), Some(e)] => self.beta = Some((u, e)),
                     _ => return Err(err(format!("--beta: '{s}' is not two weights U,E in [0, 1e6]"))),
                 }
+            }
+            "region-floor" => {
+                let s = text(p, name)?;
+                self.region_floor = Some(match s.as_str() {
+                    "off" => None,
+                    _ => Some(s.parse::<f32>().ok().filter(|v| v.is_finite() && v.abs() <= 15.0).ok_or_else(|| {
+                        err(format!("--region-floor: '{s}' is not off or a log-density in [-15, 15]"))
+                    })?),
+                });
             }
             "resume" => self.resume = Some(path(p, name)?),
             "json" => self.json = true,

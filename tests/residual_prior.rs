@@ -220,3 +220,21 @@ fn the_voted_region_holds_the_glass_from_the_same_and_from_other_poses() {
         assert!(!p.region.contains(Vec3::new(-1.2, 1.2, 0.5)));
     }
 }
+
+/// The density floor: after the lift a warm-started residual's raw density inside the region
+/// is close to max(s_bg, floor) (it starts at s_bg, far from it), and the background's
+/// surfaces above the floor are kept.
+#[test]
+fn the_lift_raises_the_residual_to_the_floor_inside_the_region() {
+    use residual_nerf::train::lift::{lift_region, LiftConfig};
+    let isa = common::best_fp32_isa();
+    let Case { mut rng, bg, .. } = case(11, 4);
+    let f = field(&bg, MixKind::Mixnet(DensityMix::Activated));
+    let mut params = f.warm_params(&mut rng).expect("same architecture");
+    let region = ChangeRegion::from_cells(aabb(), 4, &[21, 22, 25, 26]).unwrap();
+    // A floor above most of the random background's raw densities.
+    let cfg = LiftConfig { floor: 3.0, steps: 200, batch: 1024, lr: 1e-2 };
+    let report = lift_region(isa, &bg.field, &mut params.residual, &bg, &region, &cfg, 5);
+    assert!(report.error_before > 0.5, "{report:?}: the floor is not above the background");
+    assert!(report.error_after < 0.2 * report.error_before, "{report:?}");
+}

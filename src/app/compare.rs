@@ -103,7 +103,7 @@ pub(super) fn run(a: &crate::cli::CompareArgs) -> Result<(), String> {
         mixnet_grid: crate::field::mixnet::default_mixnet_grid(),
         m: a.m,
         m_sweep: a.m_sweep.clone(),
-        prior: prior_config(a.beta),
+        prior: prior_config(a.beta, a.region_floor),
     };
     let isa = Isa::detect();
     eprintln!(
@@ -310,11 +310,14 @@ pub(super) fn demo(out: &Path, steps: Option<u32>, seed: Option<u64>) -> Result<
     Ok(())
 }
 
-/// The prior's settings with `--beta U,E` applied.
-pub fn prior_config(beta: Option<(f32, f32)>) -> crate::train::prior::PriorConfig {
+/// The prior's settings with `--beta U,E` and `--region-floor S|off` applied.
+pub fn prior_config(beta: Option<(f32, f32)>, floor: Option<Option<f32>>) -> crate::train::prior::PriorConfig {
     let mut p = crate::train::prior::PriorConfig::default();
     if let Some((unchanged, entropy)) = beta {
         (p.beta.unchanged, p.beta.entropy) = (unchanged, entropy);
+    }
+    if let Some(floor) = floor {
+        p.lift = floor.map(|floor| crate::train::lift::LiftConfig { floor, ..Default::default() });
     }
     p
 }

@@ -176,7 +176,7 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
             );
             extra.push(("background_file", bg_path.display().to_string()));
             extra.push(("train_prior", format!("{hints:?}")));
-            let pcfg = crate::app::compare::prior_config(a.beta);
+            let pcfg = crate::app::compare::prior_config(a.beta, a.region_floor);
             let prior = (hints != Prior::NONE).then(|| {
                 let bg_views = match &a.background_data {
                     Some(dir) => {
@@ -199,9 +199,15 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
             });
             let prior = prior.transpose()?;
             let config = ResidualConfig { residual: field, kind, mixnet };
-            let start = residual_start(&bg, config, hints, prior.as_ref(), &cfg, &pcfg);
+            let start = residual_start(isa, &bg, config, hints, prior.as_ref(), &cfg, &pcfg);
             cfg.focus = start.focus;
             cfg.beta = start.beta;
+            if let Some(l) = start.lift {
+                eprintln!(
+                    "rnerf train: density floor in the change region: mean |s - target| {:.3} -> {:.3}",
+                    l.error_before, l.error_after
+                );
+            }
             let model = start.field;
             let trainer = Trainer::starting_at(isa, &model, &data.views, &cfg, start.params, start.occupancy);
             drive(a, &model, trainer, &extra)

@@ -421,10 +421,16 @@ pub fn run_scene(
                     let mixnet = if shared { MixnetEncoding::Shared } else { MixnetEncoding::Own(cfg.mixnet_grid) };
                     let config = ResidualConfig { residual: cfg.field.clone(), kind, mixnet };
                     let p = prior.as_ref().map(|p| &p.0);
-                    let start = residual_start(background, config, hints, p, &cfg.train, &cfg.prior);
+                    let start = residual_start(isa, background, config, hints, p, &cfg.train, &cfg.prior);
                     let mut mcfg = cfg.clone();
                     mcfg.train.focus = start.focus;
                     mcfg.train.beta = start.beta;
+                    if let Some(l) = start.lift {
+                        eprintln!(
+                            "{name}: density floor in the change region: mean |s - target| {:.3} -> {:.3}",
+                            l.error_before, l.error_after
+                        );
+                    }
                     let init = Some((start.params, start.occupancy));
                     run_method(isa, method, &start.field, init, train, test, &mcfg, log)
                 }

@@ -29,6 +29,7 @@ use crate::render::{DensityThreshold, ViewRenderer};
 use crate::rng::Rng;
 use crate::simd::Isa;
 use crate::train::beta::BetaRegulariser;
+use crate::train::lift::{lift_region, LiftConfig, LiftReport};
 use crate::train::model::Model;
 use crate::train::trainer::View;
 use crate::train::trainer::{Focus, TrainConfig};
@@ -67,7 +68,13 @@ pub struct PriorConfig {
     /// The β regularisers ([`crate::train::beta`]); the unchanged-ray penalty reads the change
     /// maps. Defaults to [`DEFAULT_BETA`].
     pub beta: BetaRegulariser,
+    /// The density floor a warm-started residual gets inside the region before training
+    /// ([`crate::train::lift`]); `None`: none. Defaults to [`DEFAULT_LIFT`].
+    pub lift: Option<LiftConfig>,
 }
+
+/// Default density floor (measured on the dev scenes: docs/DECISIONS.md).
+pub const DEFAULT_LIFT: Option<LiftConfig> = None;
 
 /// Default β regularisers (measured on the dev scenes: docs/DECISIONS.md).
 pub const DEFAULT_BETA: BetaRegulariser = BetaRegulariser { unchanged: 0.0, entropy: 0.0, entropy_from: 0.5 };
@@ -83,6 +90,7 @@ impl Default for PriorConfig {
             region_dilate: 1,
             change_share: 0.5,
             beta: DEFAULT_BETA,
+            lift: DEFAULT_LIFT,
         }
     }
 }
@@ -328,6 +336,8 @@ pub struct ResidualStart {
     pub focus: Option<Focus>,
     /// The β regularisers for [`TrainConfig::beta`] (off without the hint).
     pub beta: BetaRegulariser,
+    /// What the density floor's fit reached, when there was one.
+    pub lift: Option<LiftReport>,
 }
 
 /// The start of a residual model over `background` with `config` and `hints`, the scene's
@@ -335,6 +345,7 @@ pub struct ResidualStart {
 /// residual takes the background's architecture (`config.residual` is replaced), so the mixed
 /// field equals the background at step 0.
 pub fn residual_start(
+    isa: Isa,
     background: &Nerf,
     mut config: ResidualConfig,
     hints: Prior,
@@ -351,10 +362,15 @@ pub fn residual_start(
         field = field.with_region(p.region.clone());
     }
     let mut rng = Rng::new(cfg.seed);
-    let params = match hints.warm_start {
+    let mut lifted = None;
+    let mut params = match hints.warm_start {
         true => field.warm_params(&mut rng).expect("the residual has the background's architecture"),
         false => Model::init_params(&field, &mut rng),
     };
+    if let (true, Some(region), Some(lift)) = (hints.warm_start, field.region(), &pcfg.lift) {
+        let res = field.residual().clone();
+        lifted = Some(lift_region(isa, &res, &mut params.residual, background, region, lift, cfg.seed));
+    }
     let mut occupancy = match hints.warm_start {
         true => background.occupancy.clone(),
         false => OccupancyGrid::new(aabb, cfg.occupancy.clone()),
@@ -370,5 +386,5 @@ pub fn residual_start(
         _ => None,
     };
     let beta = if hints.beta { pcfg.beta } else { BetaRegulariser::default() };
-    ResidualStart { field, params, occupancy, focus, beta }
+    ResidualStart { field, params, occupancy, focus, beta, lift: lifted }
 }
