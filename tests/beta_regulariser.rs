@@ -138,3 +138,42 @@ fn a_beta_gradient_reaches_the_mixnet_weights() {
 fn assert_zeroed(d_beta: &[f32]) {
     assert!(d_beta.iter().all(|&x| x == 0.0), "the chunk's dL/dβ buffer starts at zero");
 }
+
+/// In the trainer: with every pixel changed the β penalty never applies (the run is the run
+/// without it, bit for bit); with none changed it reaches the Mixnet.
+#[test]
+fn the_trainer_penalises_beta_on_unchanged_rays_only() {
+    use residual_nerf::data::workspace;
+    use residual_nerf::render::{OccupancyConfig, OccupancyGrid};
+    use residual_nerf::train::beta::BetaRegulariser;
+    use residual_nerf::train::trainer::{Focus, TrainConfig, Trainer};
+    let isa = common::best_fp32_isa();
+    let grid = HashGridConfig { levels: 4, log2_table_size: 8, base_resolution: 4, finest_resolution: 16 };
+    let mut rng = Rng::new(9);
+    let bg = common::lively_nerf(grid, &mut rng);
+    let views = workspace::workspace(12, 3, 0.0, true).views;
+    let cfg = ResidualConfig {
+        residual: NerfConfig { grid, aabb: bg.field.config().aabb },
+        kind: MixKind::Mixnet(DensityMix::Raw),
+        mixnet: MixnetEncoding::default(),
+    };
+    let f = ResidualField::new(bg.clone(), cfg);
+    let params = Model::init_params(&f, &mut rng);
+    let run = |pixels: Vec<(u32, u32)>, unchanged: f32| {
+        let mut c = TrainConfig::with_steps(3);
+        c.rays_per_step = 64;
+        c.occupancy = OccupancyConfig { resolution: 8, ..Default::default() };
+        c.focus = Some(Focus { share: 0.0, pixels: std::sync::Arc::new(pixels) });
+        c.beta = BetaRegulariser { unchanged, entropy: 0.0, entropy_from: 0.0 };
+        let occupancy = OccupancyGrid::new(bg.field.config().aabb, c.occupancy.clone());
+        let mut t = Trainer::starting_at(isa, &f, &views, &c, params.clone(), occupancy);
+        while !t.is_done() {
+            t.step().expect("trains");
+        }
+        t.into_state().params.mixnet.mlp.weights().to_vec()
+    };
+    let all: Vec<(u32, u32)> = (0..views.len() as u32).flat_map(|v| (0..144).map(move |p| (v, p))).collect();
+    let off = run(all.clone(), 0.0);
+    assert_eq!(run(all, 1.0), off, "a penalty on rays that all changed");
+    assert_ne!(run(Vec::new(), 1.0), off, "the penalty on unchanged rays did not reach the Mixnet");
+}

@@ -203,10 +203,7 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
             cfg.focus = start.focus;
             cfg.beta = start.beta;
             if let Some(l) = start.lift {
-                eprintln!(
-                    "rnerf train: density floor in the change region: mean |s - target| {:.3} -> {:.3}",
-                    l.error_before, l.error_after
-                );
+                eprintln!("rnerf train: {l}");
             }
             let model = start.field;
             let trainer = Trainer::starting_at(isa, &model, &data.views, &cfg, start.params, start.occupancy);

@@ -426,10 +426,7 @@ pub fn run_scene(
                     mcfg.train.focus = start.focus;
                     mcfg.train.beta = start.beta;
                     if let Some(l) = start.lift {
-                        eprintln!(
-                            "{name}: density floor in the change region: mean |s - target| {:.3} -> {:.3}",
-                            l.error_before, l.error_after
-                        );
+                        eprintln!("{name}: {l}");
                     }
                     let init = Some((start.params, start.occupancy));
                     run_method(isa, method, &start.field, init, train, test, &mcfg, log)

@@ -47,6 +47,16 @@ pub struct LiftReport {
     pub error_after: f64,
 }
 
+impl std::fmt::Display for LiftReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "density floor in the change region: mean |s - target| {:.3} -> {:.3}",
+            self.error_before, self.error_after
+        )
+    }
+}
+
 /// Lifts the raw density of `field` at `params` (a residual NeRF) inside `region` to at least
 /// `cfg.floor` (see the module); `background` gives the targets. Deterministic from `seed`.
 pub fn lift_region(
@@ -96,20 +106,18 @@ pub fn lift_region(
     Model::after_step(field, params);
     let mut ctx = Default::default();
     let n = cfg.batch;
-    let (mut sigma, mut rgb) = (vec![0.0; n], vec![[0.0; 3]; n]);
-    let dirs = vec![Vec3::Z; n];
+    let (mut sigma, mut rgb, mut d_sigma) = (vec![0.0; n], vec![[0.0; 3]; n], vec![0.0; n]);
+    let (dirs, d_rgb) = (vec![Vec3::Z; n], vec![[0.0; 3]; n]);
     for _ in 0..cfg.steps {
         let pts = draw(&mut rng, n);
         let t = targets(&pts);
         Model::forward(field, isa, params, &pts, &dirs, &mut sigma, &mut rgb, &mut ctx);
         // L = mean (s − t)²; dL/dσ = dL/ds / (ds/dσ⁻¹), so that the backward's trunc_exp
         // derivative turns it back into dL/ds exactly.
-        let d_sigma: Vec<f32> = sigma
-            .iter()
-            .zip(&t)
-            .map(|(&x, &t)| 2.0 * (raw(x) - t) / n as f32 / Activation::TruncExp.derivative_from_output(x))
-            .collect();
-        Model::backward(field, isa, params, &mut ctx, &d_sigma, &vec![[0.0; 3]; n], &mut grads);
+        for ((d, &x), &t) in d_sigma.iter_mut().zip(&sigma).zip(&t) {
+            *d = 2.0 * (raw(x) - t) / n as f32 / Activation::TruncExp.derivative_from_output(x);
+        }
+        Model::backward(field, isa, params, &mut ctx, &d_sigma, &d_rgb, &mut grads);
         for (adam, g) in adams.iter_mut().zip(Model::groups(field, params, &grads)) {
             adam.step(isa, cfg.lr, g.master, g.grad, g.mirror);
         }

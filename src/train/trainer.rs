@@ -361,11 +361,11 @@ impl<C> Worker<C> {
                 distortion_backward(sigma, delta, t, weight, d_s, &mut self.scratch);
             }
             if let Some((beta, d_beta)) = &mut beta {
-                let unchanged = if rays.unchanged[ray] { cfg.beta.unchanged } else { 0.0 };
-                if unchanged > 0.0 || x.entropy > 0.0 {
-                    let weight = 1.0 / cfg.rays_per_step as f32;
-                    let (b, d_b) = (&beta[r.clone()], &mut d_beta[r.clone()]);
-                    beta_terms(sigma, delta, b, unchanged * weight, x.entropy * weight, d_b);
+                // Per-ray terms, averaged over the step's rays.
+                let unchanged = if rays.unchanged[ray] { cfg.beta.unchanged } else { 0.0 } / cfg.rays_per_step as f32;
+                let entropy = x.entropy / cfg.rays_per_step as f32;
+                if unchanged > 0.0 || entropy > 0.0 {
+                    beta_terms(sigma, delta, &beta[r.clone()], unchanged, entropy, &mut d_beta[r.clone()]);
                 }
             }
             if cfg.near_gradient_distance > 0.0 {
