@@ -13,13 +13,13 @@ commands:
   train  --data DIR --out MODEL [--steps N] [--rays N] [--log2t N] [--seed S] [--threads N]
          [--split NAME] [--csv FILE] [--lr LR] [--distortion L] [--near-grad D] [--fixed-background] [--background BG_MODEL [--mix mixnet|sum]
          [--density-mix raw|activated] [--mixnet-encoding own|shared] [--prior all|none|warm-start,region,focus,beta]
-         [--background-data BG_DIR] [--beta U,E] [--region-floor S|off]] [--checkpoint-every N]
+         [--background-data BG_DIR] [--beta U,E] [--region-floor S|off] [--focus-share F]] [--checkpoint-every N]
          [--scene-views N]
          train a NeRF on DIR's transforms_<split>.json (default split: train); with --background,
          a Residual-NeRF (residual + Mixnet over the frozen background; --mix sum: Residual-NeRF-S),
          by default background-aware (--prior all: start at the background, a change region voted
          from change maps against BG_DIR's images at the same poses or the rendered background,
-         half the rays from changed pixels, the β regularisers at --beta's weights, default 0,0:
+         half the rays from changed pixels, the β regularisers at --beta's weights, default 0.02,0:
          penalty on unchanged rays, entropy; --prior none: the paper's Residual-NeRF).
          Checkpoints go to MODEL with '.ckpt' before the extension (every N steps, and on
          SIGINT/SIGTERM, which then exit 130/143); a finished run removes its checkpoint
@@ -36,10 +36,11 @@ commands:
   compare --background DIR --scene DIR [--scene DIR ...] --out DIR [--background-model MODEL]
          [--methods dex,finetune,residual-paper,residual,...] [--scene-views N] [--steps N] [--rays N]
          [--log2t N] [--seed S] [--eval-every N] [--m M | --m-raw S] [--m-sweep M,M,...] [--threads N]
-         [--beta U,E] [--region-floor S|off]
+         [--beta U,E] [--region-floor S|off] [--focus-share F]
          (--m-sweep: also score the final models at these σ thresholds, default 3,10,20,40;
          --beta: weights of the background-aware methods' β penalty and entropy;
          --region-floor: lift the warm-started residual's raw density in the change region to S;
+         --focus-share: share of each step's rays drawn from changed pixels, default 0.5;
          methods: dex, finetune, residual, residual-no-warm-start, residual-no-region,
          residual-no-focus, residual-no-beta, residual-activated, residual-activated-no-warm-start,
          residual-paper, residual-paper-activated, residual-paper-shared,
@@ -49,7 +50,7 @@ commands:
          and the background-aware Residual-NeRF; scored on the object mask, the near crop (< 1.5 m)
          and the crop; writes table.md, table.json, curves.csv, <scene>/curves.png and
          <scene>/depth_<i>.png side by side
-  demo   [--out DIR] [--steps N] [--seed S] [--threads N]
+  demo   [--out DIR] [--steps N] [--size PX] [--seed S] [--threads N]
          synthesise a workspace and a glass object, then compare as above (default out: rnerf-demo)
   bench  [--json] [--reps N] [--log2t N] [--threads N] [--model MODEL [--model MODEL] --data DIR]
          throughput of the hot kernels on this machine (one JSON object with --json); with
@@ -60,7 +61,8 @@ commands:
 threshold depth: --m M is a density sigma >= M per unit of the dataset's coordinates (per metre;
   default 10);
   --m-raw S compares the raw network output s >= S (sigma = exp(s)), as the authors' code does.
-environment: RNERF_CPU_LEVEL=scalar|avx2|neon lowers the SIMD level (never raises it)";
+environment: RNERF_CPU_LEVEL=scalar|avx2|avx512|amx|neon lowers the SIMD level (never raises it;
+  x86: scalar < avx2 < avx512 < amx, aarch64: scalar < neon)";
 
 /// How depth is read off a ray.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -132,6 +134,8 @@ pub enum Command {
         out: Option<PathBuf>,
         /// Training steps (`--steps`).
         steps: Option<u32>,
+        /// Image size in pixels (`--size`, square images).
+        size: Option<u32>,
         /// Seed (`--seed`).
         seed: Option<u64>,
         /// Worker threads (`--threads`); all cores when absent.
@@ -209,6 +213,8 @@ pub struct TrainArgs {
     pub beta: Option<(f32, f32)>,
     /// The residual's density floor in the change region (`--region-floor S|off`).
     pub region_floor: Option<Option<f32>>,
+    /// Share of each step's rays drawn from changed pixels (`--focus-share F`).
+    pub focus_share: Option<f32>,
 }
 
 /// Arguments of `rnerf compare`.
@@ -248,6 +254,8 @@ pub struct CompareArgs {
     pub beta: Option<(f32, f32)>,
     /// The residual's density floor in the change region (`--region-floor S|off`).
     pub region_floor: Option<Option<f32>>,
+    /// Share of each step's rays drawn from changed pixels (`--focus-share F`).
+    pub focus_share: Option<f32>,
 }
 
 /// A command-line error: one line saying what is wrong and where.
@@ -268,7 +276,7 @@ fn err(msg: impl Into<String>) -> CliError {
 
 /// Default density threshold: σ ≥ 10 per dataset unit (per metre). The paper's m = 3 is in
 /// its own units (the authors' code tests raw s > 3, σ > e³); on the dev background σ ≥ 10/m
-/// gave the lowest depth error of 3, 10 and 20 (README, "Decisions").
+/// gave the lowest depth error of 3, 10 and 20 (docs/DECISIONS.md, "The engine").
 pub const DEFAULT_M: f32 = 10.0;
 
 /// Thresholds `rnerf compare` also scores the final models at (σ per dataset unit).
@@ -313,6 +321,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             "background-data",
             "beta",
             "region-floor",
+            "focus-share",
         ],
         "render" => &["model", "data", "out", "split", "depth", "m", "m-raw", "threads"],
         "eval" => &["model", "data", "split", "depth", "m", "m-raw", "crop", "limit", "json", "threads"],
@@ -334,8 +343,9 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             "scene-views",
             "beta",
             "region-floor",
+            "focus-share",
         ],
-        "demo" => &["out", "steps", "seed", "threads"],
+        "demo" => &["out", "steps", "size", "seed", "threads"],
         "bench" => &["json", "reps", "log2t", "threads", "model", "data"],
         other => return Err(err(format!("unknown command '{other}' (try 'rnerf help')"))),
     };
@@ -397,6 +407,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             background_data: f.background_data.clone(),
             beta: f.beta,
             region_floor: f.region_floor,
+            focus_share: f.focus_share,
         }),
         "render" => Command::Render {
             model: f.need_path("model", &command)?,
@@ -442,8 +453,9 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             threads,
             beta: f.beta,
             region_floor: f.region_floor,
+            focus_share: f.focus_share,
         }),
-        "demo" => Command::Demo { out: f.out.clone(), steps: f.steps, seed: f.seed, threads },
+        "demo" => Command::Demo { out: f.out.clone(), steps: f.steps, size: f.size, seed: f.seed, threads },
         _ => {
             if f.models.is_empty() != f.data.is_none() {
                 return Err(err(
@@ -472,6 +484,7 @@ struct Flags {
     csv: Option<PathBuf>,
     split: Option<String>,
     steps: Option<u32>,
+    size: Option<u32>,
     rays: Option<usize>,
     log2t: Option<u32>,
     seed: Option<u64>,
@@ -503,6 +516,7 @@ struct Flags {
     background_data: Option<PathBuf>,
     beta: Option<(f32, f32)>,
     region_floor: Option<Option<f32>>,
+    focus_share: Option<f32>,
     /// Flags given, in order.
     given: Vec<String>,
 }
@@ -555,6 +569,7 @@ impl Flags {
                     })?),
                 });
             }
+            "focus-share" => self.focus_share = Some(finite(p, name, 0.0, 1.0)?),
             "resume" => self.resume = Some(path(p, name)?),
             "json" => self.json = true,
             "fixed-background" => self.fixed_background = true,
@@ -609,6 +624,13 @@ impl Flags {
                 self.split = Some(s);
             }
             "steps" => self.steps = Some(positive(p, name)?),
+            "size" => {
+                let v: u32 = positive(p, name)?;
+                if !(16..=512).contains(&v) {
+                    return Err(err(format!("--size: {v} is outside 16..=512")));
+                }
+                self.size = Some(v);
+            }
             "rays" => {
                 let v: usize = positive(p, name)?;
                 if v > 1 << 20 {
@@ -803,6 +825,15 @@ mod tests {
     }
 
     #[test]
+    fn usage_names_every_cpu_level() {
+        use crate::simd::CpuLevel;
+        let line = USAGE.lines().find(|l| l.contains("RNERF_CPU_LEVEL=")).expect("the environment line");
+        for level in [CpuLevel::Scalar, CpuLevel::Avx2, CpuLevel::Avx512, CpuLevel::Amx, CpuLevel::Neon] {
+            assert!(line.contains(level.name()), "`rnerf help` does not name {}", level.name());
+        }
+    }
+
+    #[test]
     fn parses_commands_and_rejects_bad_values() {
         assert_eq!(parse(args("")), Ok(Command::Help));
         assert_eq!(parse(args("--help")), Ok(Command::Help));
@@ -819,7 +850,7 @@ mod tests {
         );
         assert_eq!(
             parse(args("demo --steps=20 --threads 1")),
-            Ok(Command::Demo { out: None, steps: Some(20), seed: None, threads: Some(1) })
+            Ok(Command::Demo { out: None, steps: Some(20), size: None, seed: None, threads: Some(1) })
         );
         match parse(args("compare --background b --scene s1 --scene s2 --out o --methods dex,residual-s --m 5")) {
             Ok(Command::Compare(CompareArgs { scenes, methods, m, .. })) => {

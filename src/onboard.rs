@@ -72,7 +72,7 @@ pub struct Extras<'a> {
 
 /// Threshold depth at σ ≥ m marches only over cells whose occupancy value showed at least
 /// this fraction of m ([`OccupancyGrid::keep_at_least`]) by default; see
-/// [`DepthRenderer::solid_fraction`] for the trade (measured in README).
+/// [`DepthRenderer::solid_fraction`] for the trade (measured in BENCHMARKS.md, "Depth rendering on trained models").
 pub const SOLID_FRACTION: f32 = 0.25;
 
 /// A loaded model (plain NeRF or residual) and the reusable buffers to render it.
@@ -123,7 +123,7 @@ impl DepthRenderer {
     /// σ·δ training saw there) stayed below `fraction · m · δ`. 0 marches every occupied
     /// cell (exact); larger values are faster and miss more: a cell's value is a sampled
     /// estimate, so a surface inside a cell can be denser than training saw. Measured on the
-    /// dev models in README ("On the robot"); the default is [`SOLID_FRACTION`].
+    /// dev models in BENCHMARKS.md ("Depth rendering on trained models"); the default is [`SOLID_FRACTION`].
     pub fn solid_fraction(mut self, fraction: f32) -> Result<DepthRenderer, String> {
         if !(fraction.is_finite() && fraction >= 0.0) {
             return Err(format!("solid fraction {fraction} is not a number >= 0"));

@@ -74,10 +74,11 @@ fn compare_writes_the_table_curves_and_depth_sheets() {
     let csv = std::fs::read_to_string(out.join("curves.csv")).unwrap();
     assert_eq!(csv.lines().count(), 1 + 3 * 2, "two curve points per method:\n{csv}");
     assert!(csv.lines().skip(1).all(|l| l.starts_with("glass,")));
-    // One sheet per test view: truth, NeRF, 3 methods, β — 6 panels side by side (magnified).
+    // One sheet per test view: truth, NeRF, 3 methods, β, error — 7 panels side by side
+    // (magnified).
     for i in 0..2 {
         let sheet = image::open(out.join(format!("glass/depth_{i}.png"))).unwrap();
-        assert_eq!(sheet.width(), 6 * (160 + 4), "sheet {i}");
+        assert_eq!(sheet.width(), 7 * (160 + 4), "sheet {i}");
     }
     assert!(image::open(out.join("glass/curves.png")).is_ok());
     // The trained background is kept for later runs (--background-model).
@@ -136,4 +137,30 @@ fn compare_refuses_a_scene_in_another_box_before_any_work() {
     assert!(e.contains("transforms_train.json") && e.contains("field 'aabb'"), "{e}");
     assert!(!e.contains('\n'), "one line: {e}");
     assert!(!out.exists(), "nothing may be written");
+}
+
+/// `rnerf demo` (sized down): the datasets, the table, the sheets and the saved models, which
+/// `rnerf eval` and `rnerf render` then read, as the demo's closing lines suggest.
+#[test]
+fn demo_writes_data_table_sheets_and_models_the_next_commands_read() {
+    let dir = scratch("demo");
+    let out = dir.join("demo");
+    let out_s = out.to_str().unwrap();
+    run(&["demo", "--out", out_s, "--size", "16", "--steps", "20"]).unwrap();
+    for f in ["table.md", "table.json", "curves.csv", "glass/curves.png", "glass/depth_0.png"] {
+        assert!(out.join(f).is_file(), "demo did not write {f}");
+    }
+    let table = std::fs::read_to_string(out.join("table.md")).unwrap();
+    assert!(table.contains("Dex-NeRF") && table.contains("Residual-NeRF"), "{table}");
+    let models = out.join("models");
+    for f in ["background.safetensors", "glass_dex.safetensors", "glass_residual.safetensors"] {
+        assert!(models.join(f).is_file(), "demo did not save models/{f}");
+    }
+    let (model, data) = (models.join("glass_residual.safetensors"), out.join("data/glass"));
+    let (model_s, data_s) = (model.to_str().unwrap(), data.to_str().unwrap());
+    run(&["eval", "--model", model_s, "--data", data_s]).unwrap();
+    let render = dir.join("render");
+    run(&["render", "--model", model_s, "--data", data_s, "--split", "test", "--out", render.to_str().unwrap()])
+        .unwrap();
+    assert!(render.read_dir().unwrap().count() > 0, "render wrote nothing");
 }

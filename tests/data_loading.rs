@@ -121,6 +121,37 @@ fn authors_single_json_layout_filters_frames_by_type() {
 }
 
 #[test]
+fn images_of_different_sizes_without_w_h_load_with_one_warning_naming_the_frame() {
+    let dir = scratch("mixed_sizes");
+    png_rgb8(&dir.join("train/0.png"), 4, 4, |_, _| [9, 9, 9]);
+    png_rgb8(&dir.join("train/1.png"), 4, 4, |_, _| [9, 9, 9]);
+    png_rgb8(&dir.join("train/2.png"), 6, 4, |_, _| [9, 9, 9]);
+    let frames: Vec<_> =
+        (0..3).map(|i| json!({"file_path": format!("train/{i}.png"), "transform_matrix": pose(1.0)})).collect();
+    write_json(&dir, "transforms_train.json", &json!({"camera_angle_x": 1.0, "frames": frames}));
+    let data = Dataset::load(&dir, "train", &LoadOptions::default()).unwrap();
+    assert_eq!(data.views[2].intrinsics.width, 6, "each frame keeps its own size");
+    assert_eq!(data.warnings.len(), 1, "{:?}", data.warnings);
+    let w = &data.warnings[0];
+    assert!(
+        w.contains("transforms_train.json") && w.contains("frame 2") && w.contains("6x4") && !w.contains('\n'),
+        "{w}"
+    );
+    // The same sizes (or sizes the json states per frame) give no warning.
+    png_rgb8(&dir.join("train/2.png"), 4, 4, |_, _| [9, 9, 9]);
+    assert!(Dataset::load(&dir, "train", &LoadOptions::default()).unwrap().warnings.is_empty());
+    png_rgb8(&dir.join("train/2.png"), 6, 4, |_, _| [9, 9, 9]);
+    let frames: Vec<_> = (0..3)
+        .map(|i| {
+            let w = if i == 2 { 6 } else { 4 };
+            json!({"file_path": format!("train/{i}.png"), "transform_matrix": pose(1.0), "w": w, "h": 4})
+        })
+        .collect();
+    write_json(&dir, "transforms_train.json", &json!({"camera_angle_x": 1.0, "frames": frames}));
+    assert!(Dataset::load(&dir, "train", &LoadOptions::default()).unwrap().warnings.is_empty());
+}
+
+#[test]
 fn scene_box_from_inward_looking_cameras_holds_cameras_and_target() {
     use residual_nerf::data::synth;
     let s = synth::tabletop(4, 12, 0.0);

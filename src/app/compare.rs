@@ -29,7 +29,7 @@ pub struct SceneData {
 /// when the background dataset cannot be read: the prior then renders the background model).
 fn background_views(dir: &Path) -> Vec<View> {
     let opts = LoadOptions { ground_truth: false, frame_type: Some(FrameType::Background), ..Default::default() };
-    match Dataset::load(dir, "train", &opts) {
+    match crate::app::load_data(dir, "train", &opts) {
         Ok(d) => d.views,
         Err(e) => {
             eprintln!("rnerf compare: background images not read ({e}); change maps use the rendered background");
@@ -41,10 +41,10 @@ fn background_views(dir: &Path) -> Vec<View> {
 /// A scene's training views (in the background's box) and its test views with ground truth.
 fn load_scene(dir: &Path, bg_box: Aabb, bg_path: &Path) -> Result<(Dataset, EvalSet), String> {
     let train_opts = LoadOptions { ground_truth: false, frame_type: Some(FrameType::Scene), ..Default::default() };
-    let mut train = Dataset::load(dir, "train", &train_opts).map_err(|e| e.to_string())?;
+    let mut train = crate::app::load_data(dir, "train", &train_opts)?;
     adopt_background_box(&mut train, bg_box, bg_path)?;
     let test_opts = LoadOptions { frame_type: Some(FrameType::Scene), ..Default::default() };
-    let test = Dataset::load(dir, "test", &test_opts).map_err(|e| e.to_string())?;
+    let test = crate::app::load_data(dir, "test", &test_opts)?;
     Ok((train, EvalSet::from_dataset(&test)?))
 }
 
@@ -66,7 +66,7 @@ pub(super) fn run(a: &crate::cli::CompareArgs) -> Result<(), String> {
         None => {
             let opts =
                 LoadOptions { ground_truth: false, frame_type: Some(FrameType::Background), ..Default::default() };
-            Background::Data(Dataset::load(&a.background, "train", &opts).map_err(|e| e.to_string())?)
+            Background::Data(crate::app::load_data(&a.background, "train", &opts)?)
         }
     };
     let aabb = match &background {
@@ -103,7 +103,8 @@ pub(super) fn run(a: &crate::cli::CompareArgs) -> Result<(), String> {
         mixnet_grid: crate::field::mixnet::default_mixnet_grid(),
         m: a.m,
         m_sweep: a.m_sweep.clone(),
-        prior: prior_config(a.beta, a.region_floor),
+        prior: prior_config(a.beta, a.region_floor, a.focus_share),
+        models: None,
     };
     let isa = Isa::detect();
     eprintln!(
@@ -229,7 +230,7 @@ fn write_tables(results: &[SceneResult], cfg: &CompareConfig, out: &Path) -> Res
 }
 
 /// Settings of `rnerf demo`: a small workspace sized to finish in about two minutes on two
-/// cores (measured in the README).
+/// cores (measured in BENCHMARKS.md; the choice in docs/DECISIONS.md, "The demo").
 pub struct DemoSize {
     /// Image side (pixels).
     pub size: u32,
@@ -241,8 +242,11 @@ pub struct DemoSize {
     pub steps: u32,
 }
 
+/// The methods the demo trains on its scene.
+pub const DEMO_METHODS: &[Method] = &[Method::Dex, Method::RESIDUAL];
+
 /// The demo's default size.
-pub const DEMO: DemoSize = DemoSize { size: 40, views: 32, test_views: 4, steps: 400 };
+pub const DEMO: DemoSize = DemoSize { size: 96, views: 32, test_views: 4, steps: 600 };
 
 /// The demo's trainer and field: a small table and a coarse occupancy grid for a tiny scene.
 pub fn demo_config(steps: u32, seed: u64) -> CompareConfig {
@@ -271,48 +275,67 @@ pub fn demo_config(steps: u32, seed: u64) -> CompareConfig {
         eval_every: (steps / 20).max(1),
         m_sweep: Vec::new(),
         prior: Default::default(),
+        models: None,
     }
 }
 
 /// `rnerf demo`: synthesise the workspace with and without a glass sphere (written as datasets
 /// into `out/data`), train the background, then compare the paper's methods on the scene.
-pub(super) fn demo(out: &Path, steps: Option<u32>, seed: Option<u64>) -> Result<(), String> {
+pub(super) fn demo(out: &Path, steps: Option<u32>, size: Option<u32>, seed: Option<u64>) -> Result<(), String> {
     let t0 = std::time::Instant::now();
+    let size = size.unwrap_or(DEMO.size);
     let cfg = demo_config(steps.unwrap_or(DEMO.steps), seed.unwrap_or(0));
     let isa = Isa::detect();
     eprintln!(
         "rnerf demo: synthesising a {s}x{s} workspace ({} views with and without a glass sphere) into {}",
         DEMO.views,
         out.join("data").display(),
-        s = DEMO.size
+        s = size
     );
-    let bg = workspace::workspace(DEMO.size, DEMO.views, 0.0, false);
-    let scene = workspace::workspace(DEMO.size, DEMO.views, 0.0, true);
-    let test = workspace::workspace(DEMO.size, DEMO.test_views, 0.37, true);
+    let bg = workspace::workspace(size, DEMO.views, 0.0, false);
+    let scene = workspace::workspace(size, DEMO.views, 0.0, true);
+    let test = workspace::workspace(size, DEMO.test_views, 0.37, true);
     std::fs::create_dir_all(out).map_err(|e| format!("{}: --out: cannot create: {e}", out.display()))?;
     bg.write_split(&out.join("data/background"), "train")?;
     scene.write_split(&out.join("data/glass"), "train")?;
     test.write_split(&out.join("data/glass"), "test")?;
     eprintln!(
-        "rnerf demo: training the background, then Dex-NeRF, Residual-NeRF and Residual-NeRF-S ({} steps each, cpu level {isa}, {} threads)",
+        "rnerf demo: training the background, then Dex-NeRF and Residual-NeRF ({} steps each, cpu level {isa}, {} threads)",
         cfg.train.steps,
         rayon::current_num_threads()
     );
     let background = train_background(isa, &bg.views, &cfg)?;
+    let models = out.join("models");
+    std::fs::create_dir_all(&models).map_err(|e| format!("{}: cannot create: {e}", models.display()))?;
+    crate::io::save_nerf(&models.join("background.safetensors"), &background, &[])?;
+    let cfg = CompareConfig { models: Some(models.clone()), ..cfg };
     let scenes = [SceneData { name: "glass".into(), train: scene.views, test: EvalSet::from_synth(&test) }];
-    let methods = [Method::Dex, Method::RESIDUAL_PAPER, Method::RESIDUAL];
-    compare_and_write(isa, &background, &bg.views, &scenes, &methods, &cfg, out)?;
+    compare_and_write(isa, &background, &bg.views, &scenes, DEMO_METHODS, &cfg, out)?;
+    let (data, residual) =
+        (out.join("data/glass"), models.join(format!("glass_{}.safetensors", Method::RESIDUAL.name())));
     eprintln!(
-        "rnerf demo: done in {:.1} s; look at {}",
+        "rnerf demo: done in {:.1} s; look at {}\nnext, try:\n  rnerf render --model {} --data {} --split test --out {}\n  rnerf eval --model {} --data {}",
         t0.elapsed().as_secs_f64(),
-        out.join("glass/depth_0.png").display()
+        out.join("glass/depth_0.png").display(),
+        residual.display(),
+        data.display(),
+        out.join("render").display(),
+        residual.display(),
+        data.display(),
     );
     Ok(())
 }
 
-/// The prior's settings with `--beta U,E` and `--region-floor S|off` applied.
-pub fn prior_config(beta: Option<(f32, f32)>, floor: Option<Option<f32>>) -> crate::train::prior::PriorConfig {
+/// The prior's settings with `--beta U,E`, `--region-floor S|off` and `--focus-share F` applied.
+pub fn prior_config(
+    beta: Option<(f32, f32)>,
+    floor: Option<Option<f32>>,
+    focus_share: Option<f32>,
+) -> crate::train::prior::PriorConfig {
     let mut p = crate::train::prior::PriorConfig::default();
+    if let Some(share) = focus_share {
+        p.change_share = share;
+    }
     if let Some((unchanged, entropy)) = beta {
         (p.beta.unchanged, p.beta.entropy) = (unchanged, entropy);
     }

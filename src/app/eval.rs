@@ -101,7 +101,7 @@ pub(super) fn run(
 ) -> Result<(), String> {
     let model = load_model(model)?;
     let opts = LoadOptions::default();
-    let data = Dataset::load(data_dir, split, &opts).map_err(|e| e.to_string())?;
+    let data = crate::app::load_data(data_dir, split, &opts)?;
     let mut progress = Progress::new("eval", data.views.len() as u64);
     let tick = |i: usize| progress.update(i as u64, "views rendered");
     let isa = Isa::detect();

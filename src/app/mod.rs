@@ -16,6 +16,20 @@ pub use train::{checkpoint_path, default_train_config, TRAIN_RAYS, TRAIN_STEPS};
 use crate::bench::{self, BenchOptions};
 use crate::cli::Command;
 
+/// Loads a dataset split for a command: the error as its one line, each warning printed as
+/// `rnerf: warning: …` on stderr.
+pub(crate) fn load_data(
+    dir: &std::path::Path,
+    split: &str,
+    opts: &crate::data::LoadOptions,
+) -> Result<crate::data::Dataset, String> {
+    let data = crate::data::Dataset::load(dir, split, opts).map_err(|e| e.to_string())?;
+    for w in &data.warnings {
+        eprintln!("rnerf: warning: {w}");
+    }
+    Ok(data)
+}
+
 /// A failed command: its one-line message and the process's exit code.
 #[derive(Debug)]
 pub struct Failure {
@@ -75,9 +89,9 @@ pub fn run(command: Command) -> Result<(), Failure> {
             set_threads(args.threads)?;
             compare::run(&args)?;
         }
-        Command::Demo { out, steps, seed, threads } => {
+        Command::Demo { out, steps, size, seed, threads } => {
             set_threads(threads)?;
-            compare::demo(&out.unwrap_or_else(|| "rnerf-demo".into()), steps, seed)?;
+            compare::demo(&out.unwrap_or_else(|| "rnerf-demo".into()), steps, size, seed)?;
         }
     }
     Ok(())

@@ -13,12 +13,14 @@ use crate::train::model::Model;
 use std::path::Path;
 
 pub(super) fn run(model: &Path, data_dir: &Path, split: &str, depth: DepthChoice, out: &Path) -> Result<(), String> {
-    if !out.is_dir() {
-        return Err(format!("{}: --out: output directory does not exist", out.display()));
+    if out.exists() && !out.is_dir() {
+        return Err(format!("{}: --out: not a directory", out.display()));
     }
     let model = load_model(model)?;
     let opts = LoadOptions { ground_truth: false, ..Default::default() };
-    let data = Dataset::load(data_dir, split, &opts).map_err(|e| e.to_string())?;
+    let data = crate::app::load_data(data_dir, split, &opts)?;
+    // Created once the inputs have been read and checked, so a bad input leaves nothing behind.
+    std::fs::create_dir_all(out).map_err(|e| format!("{}: --out: cannot create: {e}", out.display()))?;
     match &model {
         LoadedModel::Nerf(n) => render_all(&Scene::from(&**n), &data, depth, out, opts.background, false),
         LoadedModel::Residual(r) => render_all(&r.scene(), &data, depth, out, opts.background, true),

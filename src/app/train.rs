@@ -22,15 +22,15 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Arc;
 
 /// Default training steps: with [`TRAIN_RAYS`], about 6.5 minutes for 100 views of 200×200 on
-/// this project's 2-core machine (see README).
+/// this project's 2-core machine (see docs/DECISIONS.md, "The engine").
 pub const TRAIN_STEPS: u32 = 1000;
 /// Default rays per step (fixed per-step costs — Adam over the 16 M grid parameters — are
 /// small beside 1024 rays, and more, smaller steps learn faster per second than 4096-ray ones
-/// here; measured in README).
+/// here; measured in docs/DECISIONS.md).
 pub const TRAIN_RAYS: usize = 1024;
 
-/// The trainer settings `rnerf train` uses for `steps` steps (its defaults, documented in the
-/// README): [`TRAIN_RAYS`] rays per step, Adam at 1e-2 with step decay from 60% of the steps,
+/// The trainer settings `rnerf train` uses for `steps` steps (its defaults, documented in
+/// docs/DECISIONS.md): [`TRAIN_RAYS`] rays per step, Adam at 1e-2 with step decay from 60% of the steps,
 /// occupancy every 16 steps (all cells for the first 256).
 pub fn default_train_config(steps: u32) -> TrainConfig {
     TrainConfig { rays_per_step: TRAIN_RAYS, ..TrainConfig::with_steps(steps) }
@@ -114,7 +114,7 @@ pub(super) fn run(a: &TrainArgs) -> Result<(), Failure> {
 /// Loads the dataset of `a` (errors name it).
 fn load_data(a: &TrainArgs) -> Result<Dataset, String> {
     let opts = LoadOptions { ground_truth: false, ..Default::default() };
-    Dataset::load(&a.data, &a.split, &opts).map_err(|e| e.to_string())
+    crate::app::load_data(&a.data, &a.split, &opts)
 }
 
 fn describe_data(data: &Dataset) {
@@ -176,12 +176,12 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
             );
             extra.push(("background_file", bg_path.display().to_string()));
             extra.push(("train_prior", format!("{hints:?}")));
-            let pcfg = crate::app::compare::prior_config(a.beta, a.region_floor);
+            let pcfg = crate::app::compare::prior_config(a.beta, a.region_floor, a.focus_share);
             let prior = (hints != Prior::NONE).then(|| {
                 let bg_views = match &a.background_data {
                     Some(dir) => {
                         let opts = LoadOptions { ground_truth: false, ..Default::default() };
-                        Dataset::load(dir, "train", &opts).map(|d| d.views).map_err(|e| e.to_string())
+                        crate::app::load_data(dir, "train", &opts).map(|d| d.views)
                     }
                     None => Ok(Vec::new()),
                 }?;

@@ -32,7 +32,7 @@ use std::time::Instant;
 
 /// A trained model whose depth rendering `rnerf bench --model M --data D` times in place of
 /// the bench's own short-trained one — those are still foggy, so their depth rays march far
-/// (README "Depth rendering"). Its kind picks the figure: a NeRF `render_depth_ms_200`, a
+/// (BENCHMARKS.md, "Depth rendering"). Its kind picks the figure: a NeRF `render_depth_ms_200`, a
 /// residual model `render_depth_ms_200_residual`.
 pub struct TrainedView {
     /// The model, as loaded.

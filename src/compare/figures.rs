@@ -10,6 +10,8 @@ const WHITE: Colour = [255, 255, 255];
 const BLACK: Colour = [0, 0, 0];
 const GREY: Colour = [200, 200, 200];
 const RED: Colour = [230, 40, 40];
+/// The object mask's outline on depth sheets.
+const OUTLINE: Colour = [255, 60, 255];
 
 /// 3×5 glyphs, one row per byte (bit 2 = left column).
 fn glyph(c: char) -> [u8; 5] {
@@ -124,16 +126,41 @@ pub enum Panel<'a> {
     Depth(&'a [f32]),
     /// Values in [0, 1] in gray (β maps).
     Gray(&'a [f32]),
+    /// |depth − truth| from white (0) to red (≥ [`ERROR_SCALE`]); holes (NaN depth where the
+    /// truth is finite) black, pixels without truth grey.
+    Error {
+        /// z-depth (metres, NaN = hole).
+        depth: &'a [f32],
+        /// True z-depth (metres, NaN = none).
+        truth: &'a [f32],
+    },
 }
 
-/// Labelled `width × height` panels side by side, the scoring `crop` outlined in red on each;
-/// depth panels share the colour range `[near, far]` (viridis, near = dark). Small images are
-/// magnified (nearest pixel) to at least 160 pixels wide, so labels fit and pixels show.
+/// Depth error at which an [`Panel::Error`] pixel is fully red (metres).
+pub const ERROR_SCALE: f32 = 0.10;
+
+fn error_colour(depth: f32, truth: f32) -> Colour {
+    if !truth.is_finite() {
+        return GREY;
+    }
+    if !depth.is_finite() {
+        return BLACK;
+    }
+    let f = ((depth - truth).abs() / ERROR_SCALE).min(1.0);
+    let fade = (255.0 * (1.0 - f)).round() as u8;
+    [255, fade, fade]
+}
+
+/// Labelled `width × height` panels side by side, the scoring `crop` outlined in red and the
+/// object `mask` (when given) in magenta on each; depth panels share the colour range
+/// `[near, far]` (viridis, near = dark). Small images are magnified (nearest pixel) to at least
+/// 160 pixels wide, so labels fit and pixels show.
 pub fn depth_sheet(
     panels: &[(&str, Panel<'_>)],
     width: u32,
     height: u32,
     crop: [u32; 4],
+    mask: Option<&[bool]>,
     near: f32,
     far: f32,
 ) -> RgbImage {
@@ -151,8 +178,28 @@ pub fn depth_sheet(
                 let c = match panel {
                     Panel::Depth(d) => crate::io::export::depth_colour(d[p], near, far),
                     Panel::Gray(v) => [(v[p].clamp(0.0, 1.0) * 255.0).round() as u8; 3],
+                    Panel::Error { depth, truth } => error_colour(depth[p], truth[p]),
                 };
                 img.put_pixel(x0 + x, top + y, Rgb(c));
+            }
+        }
+        if let Some(mask) = mask {
+            // A magnified pixel inside the mask whose neighbour (in magnified pixels) is
+            // outside it, or off the image: a one-pixel outline at any zoom.
+            let inside = |x: i64, y: i64| {
+                x >= 0
+                    && y >= 0
+                    && (x as u32) < pw
+                    && (y as u32) < ph
+                    && mask[((y as u32 / zoom) * width + x as u32 / zoom) as usize]
+            };
+            for y in 0..ph as i64 {
+                for x in 0..pw as i64 {
+                    let edge = !(inside(x - 1, y) && inside(x + 1, y) && inside(x, y - 1) && inside(x, y + 1));
+                    if inside(x, y) && edge {
+                        img.put_pixel(x0 + x as u32, top + y as u32, Rgb(OUTLINE));
+                    }
+                }
             }
         }
         if crop[2] > crop[0] && crop[3] > crop[1] && (crop[2] - crop[0], crop[3] - crop[1]) != (width, height) {
@@ -289,13 +336,36 @@ mod tests {
     #[test]
     fn a_sheet_outlines_the_crop() {
         let d = vec![1.0f32; 200 * 200];
-        let img = depth_sheet(&[("GT", Panel::Depth(&d))], 200, 200, [2, 2, 8, 8], 0.5, 1.5);
+        let img = depth_sheet(&[("GT", Panel::Depth(&d))], 200, 200, [2, 2, 8, 8], None, 0.5, 1.5);
         let top = CHAR_H + 6;
         assert_eq!(img.get_pixel(2, top + 2).0, RED);
         assert_ne!(img.get_pixel(4, top + 4).0, RED);
         // A 16-pixel image is magnified ten times.
-        let small = depth_sheet(&[("GT", Panel::Depth(&d[..256]))], 16, 16, [2, 2, 8, 8], 0.5, 1.5);
+        let small = depth_sheet(&[("GT", Panel::Depth(&d[..256]))], 16, 16, [2, 2, 8, 8], None, 0.5, 1.5);
         assert_eq!(small.width(), 160 + 4);
         assert_eq!(small.get_pixel(20, top + 20).0, RED);
+    }
+
+    #[test]
+    fn a_sheet_outlines_the_mask_and_colours_errors() {
+        // 16×16, mask = the 4×4 square at (6..10, 6..10), magnified ten times.
+        let mask: Vec<bool> = (0..256).map(|p| (6..10).contains(&(p % 16)) && (6..10).contains(&(p / 16))).collect();
+        let truth = vec![1.0f32; 256];
+        let mut depth = vec![1.0f32; 256];
+        depth[0] = 1.0 + ERROR_SCALE; // fully red
+        depth[1] = 1.0 + ERROR_SCALE / 2.0; // half way
+        depth[2] = f32::NAN; // a hole
+        let panels = [("GT", Panel::Depth(&truth)), ("err", Panel::Error { depth: &depth, truth: &truth })];
+        let img = depth_sheet(&panels, 16, 16, [0, 0, 16, 16], Some(&mask), 0.5, 1.5);
+        let top = CHAR_H + 6;
+        let px = |panel: u32, x: u32, y: u32| img.get_pixel(panel * (160 + 4) + x, top + y).0;
+        assert_eq!(px(0, 60, 75), OUTLINE, "the mask's left edge");
+        assert_eq!(px(0, 99, 75), OUTLINE, "the mask's right edge");
+        assert_ne!(px(0, 75, 75), OUTLINE, "inside the mask");
+        assert_ne!(px(0, 59, 75), OUTLINE, "outside the mask");
+        assert_eq!(px(1, 5, 5), [255, 0, 0]);
+        assert_eq!(px(1, 15, 5), [255, 128, 128]);
+        assert_eq!(px(1, 25, 5), BLACK);
+        assert_eq!(px(1, 35, 5), WHITE, "no error");
     }
 }

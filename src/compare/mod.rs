@@ -23,6 +23,7 @@ use crate::field::mix::{DensityMix, MixKind};
 use crate::field::mixnet::MixnetEncoding;
 use crate::field::residual::ResidualConfig;
 use crate::field::{Nerf, NerfConfig, NerfField};
+use crate::io::{save_model, ModelFile};
 use crate::render::view::{RenderedView, Scene};
 use crate::render::{DensityThreshold, Intrinsics, OccupancyGrid, ViewRenderer};
 use crate::simd::Isa;
@@ -211,6 +212,8 @@ pub struct CompareConfig {
     pub m_sweep: Vec<DensityThreshold>,
     /// The background prior's settings (methods with a [`Prior`]).
     pub prior: PriorConfig,
+    /// Where each trained model is saved as `<scene>_<method>.safetensors` (None: not saved).
+    pub models: Option<std::path::PathBuf>,
 }
 
 /// A point of a speed curve: threshold-depth errors inside the test crops after `step` steps.
@@ -327,10 +330,11 @@ fn gcd(a: u32, b: u32) -> u32 {
 }
 
 /// Trains `model` on `train` (from `start` when given) with the curve observer, then renders
-/// and scores every test view.
+/// and scores every test view (and saves the model where [`CompareConfig::models`] says).
 #[allow(clippy::too_many_arguments)]
-fn run_method<M: Model>(
+fn run_method<M: Model + ModelFile>(
     isa: Isa,
+    scene_name: &str,
     method: Method,
     model: &M,
     start: Option<(M::Params, OccupancyGrid)>,
@@ -338,7 +342,7 @@ fn run_method<M: Model>(
     test: &EvalSet,
     cfg: &CompareConfig,
     log: &mut dyn FnMut(Method, &StepStats),
-) -> Result<MethodResult, TrainError> {
+) -> Result<MethodResult, String> {
     let mut curve = Vec::new();
     let mut renderer = ViewRenderer::<M>::new();
     let (mut z, mut truth) = (Vec::new(), Vec::new());
@@ -354,7 +358,12 @@ fn run_method<M: Model>(
                 let errors = crop_errors(isa, &scene, test, cfg.m, &mut renderer, &mut z, &mut truth);
                 curve.push(CurvePoint { step: done, seconds: s.seconds, errors });
             }
-        })?;
+        })
+        .map_err(|e: TrainError| e.to_string())?;
+    if let Some(dir) = &cfg.models {
+        let path = dir.join(format!("{scene_name}_{}.safetensors", method.name()));
+        save_model(&path, model, &params, &occupancy, &[("compare_method", method.name().to_string())])?;
+    }
     let seconds = curve.last().map_or(0.0, |p| p.seconds);
     let scene = Scene { model, params: &params, occupancy: &occupancy };
     let (mut threshold, mut expected) = (DepthReport::default(), DepthReport::default());
@@ -411,11 +420,13 @@ pub fn run_scene(
         .iter()
         .map(|&method| {
             match method {
-                Method::Dex => run_method(isa, method, &NerfField::new(cfg.field.clone()), None, train, test, cfg, log),
+                Method::Dex => {
+                    run_method(isa, name, method, &NerfField::new(cfg.field.clone()), None, train, test, cfg, log)
+                }
                 Method::FineTune => {
                     let field = NerfField::new(background.field.config().clone());
                     let start = Some((background.params.clone(), background.occupancy.clone()));
-                    run_method(isa, method, &field, start, train, test, cfg, log)
+                    run_method(isa, name, method, &field, start, train, test, cfg, log)
                 }
                 Method::Residual { kind, shared, prior: hints } => {
                     let mixnet = if shared { MixnetEncoding::Shared } else { MixnetEncoding::Own(cfg.mixnet_grid) };
@@ -429,7 +440,7 @@ pub fn run_scene(
                         eprintln!("{name}: {l}");
                     }
                     let init = Some((start.params, start.occupancy));
-                    run_method(isa, method, &start.field, init, train, test, &mcfg, log)
+                    run_method(isa, name, method, &start.field, init, train, test, &mcfg, log)
                 }
             }
             .map_err(|e| format!("{name}: {}: {e}", method.name()))
@@ -732,7 +743,12 @@ pub fn depth_sheet_png(r: &SceneResult, test: &EvalSet, i: usize) -> Result<Vec<
     if let Some(m) = shown {
         panels.push(("beta", Panel::Gray(&m.renders[i].beta)));
     }
-    crate::io::export::png_bytes(figures::depth_sheet(&panels, k.width, k.height, test.crops[i], near, far))
+    // The error of the default residual method, else of the last method shown.
+    if let Some(m) = r.methods.iter().find(|m| m.method == Method::RESIDUAL).or(r.methods.last()) {
+        panels.push(("error 0-10cm", Panel::Error { depth: &m.renders[i].threshold_z, truth: gt }));
+    }
+    let mask = test.masks[i].as_deref();
+    crate::io::export::png_bytes(figures::depth_sheet(&panels, k.width, k.height, test.crops[i], mask, near, far))
 }
 
 #[cfg(test)]

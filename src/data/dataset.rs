@@ -80,6 +80,10 @@ pub struct Dataset {
     pub depth_kind: DepthKind,
     /// Whether any image had alpha (composited over [`LoadOptions::background`]).
     pub had_alpha: bool,
+    /// One-line notes about input that was accepted but may not be what the author meant
+    /// (e.g. images of different sizes while the json states no `w`/`h`); the commands print
+    /// them as warnings.
+    pub warnings: Vec<String>,
 }
 
 /// The json of `split` in `dir`: `transforms_{split}.json`, else the single `transforms.json`
@@ -157,8 +161,29 @@ impl Dataset {
             Some(b) => (b, AabbSource::File),
             None => (aabb_from_cameras(&views), AabbSource::Cameras),
         };
-        Ok(Dataset { json, views, frames, aabb, aabb_source, depth_kind: t.depth_kind, had_alpha })
+        let warnings = mixed_sizes_warning(&json, &specs, &views).into_iter().collect();
+        Ok(Dataset { json, views, frames, aabb, aabb_source, depth_kind: t.depth_kind, had_alpha, warnings })
     }
+}
+
+/// A warning when the images differ in size and the json states no `w`/`h` for the frame that
+/// differs from the first: each frame then keeps its own size and intrinsics derived from it,
+/// which is right for mixed cameras but usually means a mis-exported image.
+fn mixed_sizes_warning(json: &Path, specs: &[&FrameSpec], views: &[View]) -> Option<String> {
+    let first = views.first()?;
+    let (w0, h0) = (first.intrinsics.width, first.intrinsics.height);
+    let differ = specs.iter().zip(views).find(|(f, v)| {
+        (v.intrinsics.width, v.intrinsics.height) != (w0, h0) && (f.camera.w.is_none() || f.camera.h.is_none())
+    })?;
+    let (f, v) = differ;
+    Some(format!(
+        "{}: frame {}: image is {}x{} but frame {}'s is {w0}x{h0} and the json states no w/h; each frame keeps its own size",
+        json.display(),
+        f.index,
+        v.intrinsics.width,
+        v.intrinsics.height,
+        specs[0].index
+    ))
 }
 
 fn load_frame(

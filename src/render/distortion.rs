@@ -1,7 +1,7 @@
 //! The distortion loss of mip-NeRF 360 (Barron et al. 2022, Eq. 15) along one ray, forward and
 //! backward to the densities: it pulls each ray's weights together, which removes the
 //! spread-out "fog" and floaters a NeRF otherwise keeps when trained for a few thousand steps
-//! (DESIGN §2.2 leaves regularisation open; README "Decisions" records the choice).
+//! (DESIGN §2.2 leaves regularisation open; docs/DECISIONS.md records the choice).
 //!
 //! With sample midpoints `m_i` (= `t_i`), steps `δ_i` and weights `w_i` (compositing, Eq. 2):
 //! `L = Σ_{i,j} w_i w_j |m_i − m_j| + ⅓ Σ_i w_i² δ_i`, in the scene's distance units.

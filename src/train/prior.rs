@@ -77,7 +77,7 @@ pub struct PriorConfig {
 pub const DEFAULT_LIFT: Option<LiftConfig> = None;
 
 /// Default β regularisers (measured on the dev scenes: docs/DECISIONS.md).
-pub const DEFAULT_BETA: BetaRegulariser = BetaRegulariser { unchanged: 0.0, entropy: 0.0, entropy_from: 0.5 };
+pub const DEFAULT_BETA: BetaRegulariser = BetaRegulariser { unchanged: 0.02, entropy: 0.0, entropy_from: 0.5 };
 
 impl Default for PriorConfig {
     fn default() -> Self {

@@ -98,11 +98,11 @@ pub struct Focus {
     pub pixels: std::sync::Arc<Vec<(u32, u32)>>,
 }
 
-/// Default of [`TrainConfig::near_gradient_distance`] (chosen by measured depth; README).
+/// Default of [`TrainConfig::near_gradient_distance`] (chosen by measured depth; docs/DECISIONS.md).
 pub const NEAR_GRADIENT_DISTANCE: f32 = 0.0;
 
 /// Default weight of the distortion loss: off — on the dev background it did not improve depth
-/// at the weights tried (README, "Decisions").
+/// at the weights tried (docs/DECISIONS.md, "The engine").
 pub const DISTORTION: f32 = 0.0;
 
 impl TrainConfig {

@@ -54,7 +54,7 @@ pub struct HashGridConfig {
     /// Number of levels `L`. Defaults to 16.
     pub levels: usize,
     /// log2 of the per-level table size `T`. Defaults to 17, chosen by measured quality per
-    /// second on the dev scenes (README "Decisions"; Instant-NGP's NeRF setting is 19).
+    /// second on the dev scenes (docs/DECISIONS.md, "The engine"; Instant-NGP's NeRF setting is 19).
     pub log2_table_size: u32,
     /// Coarsest resolution `N_min`. Defaults to 16.
     pub base_resolution: u32,
