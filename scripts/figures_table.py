@@ -61,6 +61,8 @@ def main():
     rows = []
 
     def row(figure, value, level, command):
+        if command != "same" and not command.startswith("scripts/"):
+            command = f"RNERF_CPU_LEVEL={level} {command}"
         rows.append(f"| {figure} | {value} | {level} | {host} | {date} | {commit} | `{command}` |")
 
     bench_figures = [
