@@ -76,6 +76,13 @@ def main():
         ("threshold depth, 200×200 view, bench's model", "render_depth_ms_200", " ms"),
         ("threshold depth, 200×200 view, bench's residual model", "render_depth_ms_200_residual", " ms"),
     ]
+    def timed(level, name, what, command, digits):
+        """Wall time and peak RSS of one `/usr/bin/time -v` run, as two rows."""
+        t = gnu_time(os.path.join(out, f"{name}_{level}.log.time"))
+        if t:
+            row(f"{what}, wall", f"{t[0]:.{digits}f} s", level, command)
+            row(f"{what}, peak RSS", f"{t[1]:.0f} MiB", level, "same")
+
     for level in levels:
         b = load_json(os.path.join(out, f"bench_{level}.json"))
         if b:
@@ -88,30 +95,21 @@ def main():
                     lo, hi = spread[key]
                     v += f" [{fmt(lo)}–{fmt(hi)}]"
                 row(name, v + unit, b.get("cpu_level", level), "rnerf bench --json --reps REPS")
-        t = gnu_time(os.path.join(out, f"demo_{level}.log.time"))
-        if t:
-            row("`rnerf demo`, wall (build excluded)", f"{t[0]:.1f} s", level, "rnerf demo")
-            row("`rnerf demo`, peak RSS", f"{t[1]:.0f} MiB", level, "rnerf demo")
+        timed(level, "demo", "`rnerf demo` (build excluded)", "rnerf demo", 1)
         table = load_json(os.path.join(out, f"demo_{level}", "table.json"))
         if table:
             for r in table.get("rows", []):
                 obj = r.get("object", {})
                 if "mae" in obj and r.get("method") in ("dex", "residual"):
                     row(f"`rnerf demo`, {r['method']} object-mask depth MAE", f"{obj['mae']:.3f} m", level, "rnerf demo")
-        t = gnu_time(os.path.join(out, f"bg_{level}.log.time"))
-        if t:
-            row("dev background, `rnerf train` (1000 × 1024 rays), wall", f"{t[0]:.0f} s", level,
-                "rnerf train --data DEV/background --out bg.safetensors")
-            row("dev background training, peak RSS", f"{t[1]:.0f} MiB", level, "same")
+        timed(level, "bg", "dev background, `rnerf train` (1000 × 1024 rays)",
+              "rnerf train --data DEV/background --out bg.safetensors", 0)
         e = load_json(os.path.join(out, f"bg_eval_{level}.json"))
         if e:
             row("dev background, test PSNR", f"{e['psnr']:.2f} dB", level, "rnerf eval --model bg.safetensors --data DEV/background --json")
             row("dev background, threshold-depth MAE (crops)", f"{e['mae']:.4f} m", level, "same")
-        t = gnu_time(os.path.join(out, f"res_{level}.log.time"))
-        if t:
-            row("glass_up Residual-NeRF, `rnerf train` (prior + 1000 steps), wall", f"{t[0]:.0f} s", level,
-                "rnerf train --data DEV/glass_up --background bg.safetensors --background-data DEV/background --out res.safetensors")
-            row("glass_up Residual-NeRF training, peak RSS", f"{t[1]:.0f} MiB", level, "same")
+        timed(level, "res", "glass_up Residual-NeRF, `rnerf train` (prior + 1000 steps)",
+              "rnerf train --data DEV/glass_up --background bg.safetensors --background-data DEV/background --out res.safetensors", 0)
         e = load_json(os.path.join(out, f"res_eval_{level}.json"))
         if e:
             obj = e.get("regions", {}).get("object", {})

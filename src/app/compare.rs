@@ -307,21 +307,17 @@ pub(super) fn demo(out: &Path, steps: Option<u32>, size: Option<u32>, seed: Opti
     let background = train_background(isa, &bg.views, &cfg)?;
     let models = out.join("models");
     std::fs::create_dir_all(&models).map_err(|e| format!("{}: cannot create: {e}", models.display()))?;
-    crate::io::save_nerf(&models.join("background.safetensors"), &background, &[])?;
+    save_nerf(&models.join("background.safetensors"), &background, &[])?;
     let cfg = CompareConfig { models: Some(models.clone()), ..cfg };
     let scenes = [SceneData { name: "glass".into(), train: scene.views, test: EvalSet::from_synth(&test) }];
     compare_and_write(isa, &background, &bg.views, &scenes, DEMO_METHODS, &cfg, out)?;
-    let (data, residual) =
-        (out.join("data/glass"), models.join(format!("glass_{}.safetensors", Method::RESIDUAL.name())));
+    let (data, residual) = (out.join("data/glass"), compare::model_path(&models, "glass", Method::RESIDUAL));
+    let (data, residual) = (data.display(), residual.display());
     eprintln!(
-        "rnerf demo: done in {:.1} s; look at {}\nnext, try:\n  rnerf render --model {} --data {} --split test --out {}\n  rnerf eval --model {} --data {}",
+        "rnerf demo: done in {:.1} s; look at {}\nnext, try:\n  rnerf render --model {residual} --data {data} --split test --out {}\n  rnerf eval --model {residual} --data {data}",
         t0.elapsed().as_secs_f64(),
         out.join("glass/depth_0.png").display(),
-        residual.display(),
-        data.display(),
         out.join("render").display(),
-        residual.display(),
-        data.display(),
     );
     Ok(())
 }

@@ -151,6 +151,27 @@ fn error_colour(depth: f32, truth: f32) -> Colour {
     [255, fade, fade]
 }
 
+/// The magnified pixels (in a `pw × ph` panel) inside `mask` whose neighbour is outside it or
+/// off the image: a one-pixel outline at any zoom.
+fn mask_outline(mask: &[bool], width: u32, zoom: u32, pw: u32, ph: u32) -> Vec<(u32, u32)> {
+    let inside = |x: i64, y: i64| {
+        x >= 0
+            && y >= 0
+            && (x as u32) < pw
+            && (y as u32) < ph
+            && mask[((y as u32 / zoom) * width + x as u32 / zoom) as usize]
+    };
+    let mut edge = Vec::new();
+    for y in 0..ph as i64 {
+        for x in 0..pw as i64 {
+            if inside(x, y) && !(inside(x - 1, y) && inside(x + 1, y) && inside(x, y - 1) && inside(x, y + 1)) {
+                edge.push((x as u32, y as u32));
+            }
+        }
+    }
+    edge
+}
+
 /// Labelled `width × height` panels side by side, the scoring `crop` outlined in red and the
 /// object `mask` (when given) in magenta on each; depth panels share the colour range
 /// `[near, far]` (viridis, near = dark). Small images are magnified (nearest pixel) to at least
@@ -169,6 +190,7 @@ pub fn depth_sheet(
     let top = CHAR_H + 6;
     let gap = 4;
     let mut img = RgbImage::from_pixel((panels.len() as u32 * (pw + gap)).max(1), ph + top, Rgb(WHITE));
+    let outline = mask.map_or_else(Vec::new, |m| mask_outline(m, width, zoom, pw, ph));
     for (k, (label, panel)) in panels.iter().enumerate() {
         let x0 = k as u32 * (pw + gap);
         text(&mut img, x0 as i64 + 2, 3, label, BLACK);
@@ -183,24 +205,8 @@ pub fn depth_sheet(
                 img.put_pixel(x0 + x, top + y, Rgb(c));
             }
         }
-        if let Some(mask) = mask {
-            // A magnified pixel inside the mask whose neighbour (in magnified pixels) is
-            // outside it, or off the image: a one-pixel outline at any zoom.
-            let inside = |x: i64, y: i64| {
-                x >= 0
-                    && y >= 0
-                    && (x as u32) < pw
-                    && (y as u32) < ph
-                    && mask[((y as u32 / zoom) * width + x as u32 / zoom) as usize]
-            };
-            for y in 0..ph as i64 {
-                for x in 0..pw as i64 {
-                    let edge = !(inside(x - 1, y) && inside(x + 1, y) && inside(x, y - 1) && inside(x, y + 1));
-                    if inside(x, y) && edge {
-                        img.put_pixel(x0 + x as u32, top + y as u32, Rgb(OUTLINE));
-                    }
-                }
-            }
+        for &(x, y) in &outline {
+            img.put_pixel(x0 + x, top + y, Rgb(OUTLINE));
         }
         if crop[2] > crop[0] && crop[3] > crop[1] && (crop[2] - crop[0], crop[3] - crop[1]) != (width, height) {
             let (cx0, cy0) = ((x0 + crop[0] * zoom) as i64, (top + crop[1] * zoom) as i64);

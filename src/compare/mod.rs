@@ -329,6 +329,11 @@ fn gcd(a: u32, b: u32) -> u32 {
     }
 }
 
+/// The file [`CompareConfig::models`] gets for `method` trained on `scene`.
+pub fn model_path(dir: &std::path::Path, scene: &str, method: Method) -> std::path::PathBuf {
+    dir.join(format!("{scene}_{}.safetensors", method.name()))
+}
+
 /// Trains `model` on `train` (from `start` when given) with the curve observer, then renders
 /// and scores every test view (and saves the model where [`CompareConfig::models`] says).
 #[allow(clippy::too_many_arguments)]
@@ -361,8 +366,13 @@ fn run_method<M: Model + ModelFile>(
         })
         .map_err(|e: TrainError| e.to_string())?;
     if let Some(dir) = &cfg.models {
-        let path = dir.join(format!("{scene_name}_{}.safetensors", method.name()));
-        save_model(&path, model, &params, &occupancy, &[("compare_method", method.name().to_string())])?;
+        save_model(
+            &model_path(dir, scene_name, method),
+            model,
+            &params,
+            &occupancy,
+            &[("compare_method", method.name().to_string())],
+        )?;
     }
     let seconds = curve.last().map_or(0.0, |p| p.seconds);
     let scene = Scene { model, params: &params, occupancy: &occupancy };
