@@ -12,14 +12,16 @@ pub const USAGE: &str = "usage: rnerf <command> [options]
 commands:
   train  --data DIR --out MODEL [--steps N] [--rays N] [--log2t N] [--seed S] [--threads N]
          [--split NAME] [--csv FILE] [--lr LR] [--distortion L] [--near-grad D] [--fixed-background] [--background BG_MODEL [--mix mixnet|sum]
-         [--density-mix raw|activated] [--mixnet-encoding own|shared] [--prior all|none|warm-start,region,focus,beta]
-         [--background-data BG_DIR] [--beta U,E] [--region-floor S|off] [--focus-share F]] [--checkpoint-every N]
+         [--density-mix raw|activated] [--mixnet-encoding own|shared] [--prior all|none|warm-start,region,focus,beta,reach]
+         [--background-data BG_DIR] [--beta U,E] [--region-floor S|off] [--focus-share F]
+         [--region-vote V,S]] [--checkpoint-every N]
          [--scene-views N]
          train a NeRF on DIR's transforms_<split>.json (default split: train); with --background,
          a Residual-NeRF (residual + Mixnet over the frozen background; --mix sum: Residual-NeRF-S),
          by default background-aware (--prior all: start at the background, a change region voted
          from change maps against BG_DIR's images at the same poses or the rendered background,
-         half the rays from changed pixels, the β regularisers at --beta's weights, default 0.02,0:
+         half the rays from changed pixels and the rest from pixels whose ray crosses the region,
+         the β regularisers at --beta's weights, default 0.02,0:
          penalty on unchanged rays, entropy; --prior none: the paper's Residual-NeRF).
          Checkpoints go to MODEL with '.ckpt' before the extension (every N steps, and on
          SIGINT/SIGTERM, which then exit 130/143); a finished run removes its checkpoint
@@ -36,13 +38,15 @@ commands:
   compare --background DIR --scene DIR [--scene DIR ...] --out DIR [--background-model MODEL]
          [--methods dex,finetune,residual-paper,residual,...] [--scene-views N] [--steps N] [--rays N]
          [--log2t N] [--seed S] [--eval-every N] [--m M | --m-raw S] [--m-sweep M,M,...] [--threads N]
-         [--beta U,E] [--region-floor S|off] [--focus-share F]
+         [--beta U,E] [--region-floor S|off] [--focus-share F] [--region-vote V,S]
          (--m-sweep: also score the final models at these σ thresholds, default 3,10,20,40;
          --beta: weights of the background-aware methods' β penalty and entropy;
          --region-floor: lift the warm-started residual's raw density in the change region to S;
          --focus-share: share of each step's rays drawn from changed pixels, default 0.5;
+         --region-vote: a cell is in the change region when at least S of all views see it and
+         at least V of those see a change there, default 0.5,0.25;
          methods: dex, finetune, residual, residual-no-warm-start, residual-no-region,
-         residual-no-focus, residual-no-beta, residual-activated, residual-activated-no-warm-start,
+         residual-no-focus, residual-no-reach, residual-no-beta, residual-activated, residual-activated-no-warm-start,
          residual-paper, residual-paper-activated, residual-paper-shared,
          residual-paper-activated-shared, residual-s)
          the paper's protocol and more: train the background on DIR (or load MODEL), then per scene
@@ -215,6 +219,9 @@ pub struct TrainArgs {
     pub region_floor: Option<Option<f32>>,
     /// Share of each step's rays drawn from changed pixels (`--focus-share F`).
     pub focus_share: Option<f32>,
+    /// The region's vote: share of the seeing views that must see a change, share of all
+    /// views that must see the cell (`--region-vote V,S`).
+    pub region_vote: Option<(f32, f32)>,
 }
 
 /// Arguments of `rnerf compare`.
@@ -256,6 +263,9 @@ pub struct CompareArgs {
     pub region_floor: Option<Option<f32>>,
     /// Share of each step's rays drawn from changed pixels (`--focus-share F`).
     pub focus_share: Option<f32>,
+    /// The region's vote: share of the seeing views that must see a change, share of all
+    /// views that must see the cell (`--region-vote V,S`).
+    pub region_vote: Option<(f32, f32)>,
 }
 
 /// A command-line error: one line saying what is wrong and where.
@@ -322,6 +332,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             "beta",
             "region-floor",
             "focus-share",
+            "region-vote",
         ],
         "render" => &["model", "data", "out", "split", "depth", "m", "m-raw", "threads"],
         "eval" => &["model", "data", "split", "depth", "m", "m-raw", "crop", "limit", "json", "threads"],
@@ -344,6 +355,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             "beta",
             "region-floor",
             "focus-share",
+            "region-vote",
         ],
         "demo" => &["out", "steps", "size", "seed", "threads"],
         "bench" => &["json", "reps", "log2t", "threads", "model", "data"],
@@ -408,6 +420,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             beta: f.beta,
             region_floor: f.region_floor,
             focus_share: f.focus_share,
+            region_vote: f.region_vote,
         }),
         "render" => Command::Render {
             model: f.need_path("model", &command)?,
@@ -454,6 +467,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             beta: f.beta,
             region_floor: f.region_floor,
             focus_share: f.focus_share,
+            region_vote: f.region_vote,
         }),
         "demo" => Command::Demo { out: f.out.clone(), steps: f.steps, size: f.size, seed: f.seed, threads },
         _ => {
@@ -517,6 +531,7 @@ struct Flags {
     beta: Option<(f32, f32)>,
     region_floor: Option<Option<f32>>,
     focus_share: Option<f32>,
+    region_vote: Option<(f32, f32)>,
     /// Flags given, in order.
     given: Vec<String>,
 }
@@ -538,10 +553,11 @@ impl Flags {
                             "region" => h.region = true,
                             "focus" => h.focus = true,
                             "beta" => h.beta = true,
+                            "reach" => h.reach = true,
                             "all" => h = crate::train::prior::Prior::ALL,
                             _ => {
                                 return Err(err(format!(
-                                    "--prior: '{part}' is not all, none, warm-start, region, focus or beta"
+                                    "--prior: '{part}' is not all, none, warm-start, region, focus, beta or reach"
                                 )))
                             }
                         }
@@ -570,6 +586,15 @@ impl Flags {
                 });
             }
             "focus-share" => self.focus_share = Some(finite(p, name, 0.0, 1.0)?),
+            "region-vote" => {
+                let s = text(p, name)?;
+                let v: Vec<Option<f32>> =
+                    s.split(',').map(|x| x.parse::<f32>().ok().filter(|v| (0.0..=1.0).contains(v))).collect();
+                match v[..] {
+                    [Some(vote), Some(seen)] => self.region_vote = Some((vote, seen)),
+                    _ => return Err(err(format!("--region-vote: '{s}' is not two shares V,S in [0, 1]"))),
+                }
+            }
             "resume" => self.resume = Some(path(p, name)?),
             "json" => self.json = true,
             "fixed-background" => self.fixed_background = true,

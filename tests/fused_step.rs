@@ -12,6 +12,7 @@ use glam::Vec3;
 use residual_nerf::encoding::HashGridConfig;
 use residual_nerf::field::mix::{DensityMix, MixKind};
 use residual_nerf::field::mixnet::MixnetEncoding;
+use residual_nerf::field::region::ChangeRegion;
 use residual_nerf::field::residual::{ResidualConfig, ResidualField};
 use residual_nerf::field::{Nerf, NerfConfig};
 use residual_nerf::render::Aabb;
@@ -146,5 +147,20 @@ fn the_residual_chunk_path_matches_the_batch_path() {
         }
         p.mixnet.mlp.sync();
         fused_matches_batch(&format!("residual {kind:?} {mixnet:?}"), &f, &p, &mut rng);
+        // With a change region the chunk path evaluates the residual and the Mixnet inside it
+        // only; the batch path evaluates them everywhere and masks β. A thin slab along one
+        // edge (few rows inside) and half the box.
+        if let MixKind::Mixnet(_) = kind {
+            for cells in [(0..4).collect::<Vec<u32>>(), (0..32).collect()] {
+                let region = ChangeRegion::from_cells(aabb(), 4, &cells).unwrap();
+                let fr = f.clone().with_region(region);
+                fused_matches_batch(
+                    &format!("residual {kind:?} {mixnet:?} in {} cells", cells.len()),
+                    &fr,
+                    &p,
+                    &mut rng,
+                );
+            }
+        }
     }
 }

@@ -12,7 +12,7 @@ use residual_nerf::encoding::HashGridConfig;
 use residual_nerf::field::mix::{DensityMix, MixKind};
 use residual_nerf::field::mixnet::MixnetEncoding;
 use residual_nerf::field::region::ChangeRegion;
-use residual_nerf::field::residual::{ResidualConfig, ResidualContext, ResidualField};
+use residual_nerf::field::residual::{ResidualConfig, ResidualContext, ResidualField, ResidualNetGrads};
 use residual_nerf::field::Nerf;
 use residual_nerf::render::{Aabb, DensityThreshold};
 use residual_nerf::rng::Rng;
@@ -119,13 +119,35 @@ proptest! {
                 }
             }
             prop_assert!(outside > 0);
-            // Chunk path (training, depth-only rendering): the same σ.
+            // Chunk path (training, depth-only rendering; the residual and the Mixnet skipped
+            // outside the region, often on every row here): the same σ and colours, and no
+            // gradient from outside.
             let mut chunk = Default::default();
             let mut s2 = vec![0.0; n];
             f.chunk_density(isa, &params, 0, &p, &mut s2, &mut chunk);
             for i in (0..n).filter(|&i| !region.contains(p[i])) {
                 prop_assert_eq!(s2[i].to_bits(), s_bg[i].to_bits());
             }
+            let keep: Vec<u32> = (0..n as u32).collect();
+            let mut c2 = vec![[0.0; 3]; n];
+            f.chunk_colour(isa, &params, &keep, &d, &mut c2, &mut chunk);
+            for i in (0..n).filter(|&i| !region.contains(p[i])) {
+                for k in 0..3 {
+                    prop_assert_eq!(c2[i][k].to_bits(), c_bg[i][k].to_bits());
+                }
+            }
+            let d_out: Vec<f32> = (0..n).map(|i| if region.contains(p[i]) { 0.0 } else { 1.0 }).collect();
+            let d_rgb_out: Vec<[f32; 3]> = d_out.iter().map(|&g| [g; 3]).collect();
+            let mut nets = ResidualNetGrads::default();
+            nets.residual.clear(f.residual());
+            nets.mixnet.resize(f.mixnet().mlp().n_params(), 0.0);
+            f.chunk_backward(isa, &params, &mut chunk, &d_out, &d_rgb_out, &mut nets);
+            let ResidualNetGrads { residual, mixnet } = &nets;
+            let chunk_grads = [&residual.density, &residual.colour, mixnet];
+            for g in chunk_grads {
+                prop_assert!(g.iter().all(|&x| x == 0.0), "{:?}: a chunk gradient from outside the region", kind);
+            }
+            prop_assert!(chunk.residual().feature_grad().iter().all(|&x| x == 0.0));
             // Gradients of outside samples only: zero everywhere.
             let d_sigma: Vec<f32> = (0..n).map(|i| if region.contains(p[i]) { 0.0 } else { 1.0 }).collect();
             let d_rgb: Vec<[f32; 3]> = d_sigma.iter().map(|&g| [g; 3]).collect();
@@ -237,4 +259,61 @@ fn the_lift_raises_the_residual_to_the_floor_inside_the_region() {
     let report = lift_region(isa, &bg.field, &mut params.residual, &bg, &region, &cfg, 5);
     assert!(report.error_before > 0.5, "{report:?}: the floor is not above the background");
     assert!(report.error_after < 0.2 * report.error_before, "{report:?}");
+}
+
+/// The reach pixels of a region: every pixel whose ray crosses a region cell in front of the
+/// background's surface (found by marching the ray finely) is in the set, the set hugs those
+/// pixels (each within two pixels of one), and a surface in front of the region hides it.
+#[test]
+fn reach_pixels_are_the_rays_that_cross_the_region() {
+    use residual_nerf::render::camera::{pixel_ray, Intrinsics, Pose};
+    use residual_nerf::train::prior::reach_pixels;
+    use residual_nerf::train::trainer::View;
+    let res = 16;
+    let cells: Vec<u32> =
+        [(7, 8, 8), (8, 8, 8), (8, 9, 8), (3, 4, 10)].iter().map(|&(x, y, z)| x + res * (y + res * z)).collect();
+    let region = ChangeRegion::from_cells(aabb(), res, &cells).unwrap();
+    let (w, h) = (48u32, 40u32);
+    let k = Intrinsics::from_fov_x(w, h, 0.9);
+    let views: Vec<View> = [Vec3::new(2.5, -1.0, 0.8), Vec3::new(-0.3, 2.6, -0.4)]
+        .iter()
+        .map(|&eye| View { intrinsics: k, pose: Pose::look_at(eye, Vec3::ZERO), rgb: vec![[0.0; 3]; (w * h) as usize] })
+        .collect();
+    let margin = (aabb().size() / res as f32).length();
+    for hidden in [false, true] {
+        // The background's surface: far behind the box, or 0.4 m in front of the camera.
+        let depth: Vec<Vec<f32>> =
+            views.iter().map(|_| vec![if hidden { 0.4 } else { 50.0 }; (w * h) as usize]).collect();
+        let reach = reach_pixels(&region, &views, &depth);
+        for (vi, v) in views.iter().enumerate() {
+            let set: std::collections::HashSet<u32> = reach.iter().filter(|r| r.0 == vi as u32).map(|r| r.1).collect();
+            let crossing: Vec<u32> = (0..w * h)
+                .filter(|&p| {
+                    let ray = pixel_ray(&v.intrinsics, &v.pose, p % w, p / w);
+                    (0..4000).any(|i| {
+                        let t = i as f32 * 0.002;
+                        ray.range_to_z(t) <= depth[vi][p as usize] + margin && region.contains(ray.at(t))
+                    })
+                })
+                .collect();
+            if hidden {
+                assert!(
+                    crossing.is_empty() && set.is_empty(),
+                    "view {vi}: a hidden region is reached by {} pixels",
+                    set.len()
+                );
+                continue;
+            }
+            assert!(crossing.len() > 10, "view {vi}: the region covers {} pixels", crossing.len());
+            for p in &crossing {
+                assert!(set.contains(p), "view {vi}: pixel {p} crosses the region but is not in reach");
+            }
+            let near = |p: u32| {
+                crossing.iter().any(|&q| {
+                    ((p % w) as i64 - (q % w) as i64).abs() <= 2 && ((p / w) as i64 - (q / w) as i64).abs() <= 2
+                })
+            };
+            assert!(set.iter().all(|&p| near(p)), "view {vi}: a reach pixel lies far from every crossing ray");
+        }
+    }
 }

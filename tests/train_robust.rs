@@ -15,7 +15,9 @@ use residual_nerf::render::{Aabb, OccupancyConfig, OccupancyGrid};
 use residual_nerf::rng::Rng;
 use residual_nerf::simd::Isa;
 use residual_nerf::train::model::Model;
-use residual_nerf::train::trainer::{TrainConfig, TrainError, TrainState, Trainer, View, MAX_BAD_STEPS_IN_A_ROW};
+use residual_nerf::train::trainer::{
+    Focus, TrainConfig, TrainError, TrainState, Trainer, View, MAX_BAD_STEPS_IN_A_ROW,
+};
 use std::path::{Path, PathBuf};
 
 fn scratch(name: &str) -> PathBuf {
@@ -62,12 +64,13 @@ fn resume_matches<M: ModelFile>(
     aabb: Aabb,
     views: &[View],
     dir: &Path,
+    cfg: &TrainConfig,
     unpack: impl Fn(LoadedModel) -> (M::Params, OccupancyGrid),
 ) where
     M::Params: PartialEq,
 {
     let isa = Isa::detect();
-    let cfg = train_config(40);
+    let cfg = cfg.clone();
     let mut straight = Trainer::new(isa, model, aabb, views, &cfg);
     run_to_end(&mut straight);
 
@@ -98,7 +101,7 @@ fn resume_matches<M: ModelFile>(
 fn a_resumed_nerf_run_equals_an_uninterrupted_one() {
     let scene = workspace::workspace(16, 8, 0.0, false);
     let field = NerfField::new(field_config(scene.aabb));
-    resume_matches(&field, scene.aabb, &scene.views, &scratch("nerf"), |m| match m {
+    resume_matches(&field, scene.aabb, &scene.views, &scratch("nerf"), &train_config(40), |m| match m {
         LoadedModel::Nerf(n) => (n.params, n.occupancy),
         LoadedModel::Residual(_) => panic!("saved a NeRF"),
     });
@@ -117,10 +120,22 @@ fn a_resumed_residual_run_equals_an_uninterrupted_one() {
         let config =
             ResidualConfig { residual: field_config(scene.aabb), kind: MixKind::Mixnet(DensityMix::Raw), mixnet };
         let field = ResidualField::new(background.clone(), config);
-        resume_matches(&field, scene.aabb, &scene.views, &scratch("residual"), |m| match m {
-            LoadedModel::Residual(r) => (r.params, r.occupancy),
-            LoadedModel::Nerf(_) => panic!("saved a residual model"),
+        // Plain, and with focus and reach pixels and the β penalty (the background-aware
+        // method's sampling, whose pixel lists the checkpoint carries).
+        let mut aware = train_config(40);
+        let pixels = |step: u32| (0..8u32).flat_map(|v| (0..256).step_by(step as usize).map(move |p| (v, p))).collect();
+        aware.focus = Some(Focus {
+            share: 0.5,
+            pixels: std::sync::Arc::new(pixels(7)),
+            reach: Some(std::sync::Arc::new(pixels(3))),
         });
+        aware.beta.unchanged = 0.02;
+        for cfg in [train_config(40), aware] {
+            resume_matches(&field, scene.aabb, &scene.views, &scratch("residual"), &cfg, |m| match m {
+                LoadedModel::Residual(r) => (r.params, r.occupancy),
+                LoadedModel::Nerf(_) => panic!("saved a residual model"),
+            });
+        }
     }
 }
 

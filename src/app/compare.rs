@@ -103,7 +103,7 @@ pub(super) fn run(a: &crate::cli::CompareArgs) -> Result<(), String> {
         mixnet_grid: crate::field::mixnet::default_mixnet_grid(),
         m: a.m,
         m_sweep: a.m_sweep.clone(),
-        prior: prior_config(a.beta, a.region_floor, a.focus_share),
+        prior: prior_config(a.beta, a.region_floor, a.focus_share, a.region_vote),
         models: None,
     };
     let isa = Isa::detect();
@@ -217,7 +217,7 @@ fn write_tables(results: &[SceneResult], cfg: &CompareConfig, out: &Path) -> Res
         .iter()
         .filter_map(|r| {
             r.prior.map(|p| {
-                json!({"scene": r.name, "changed_pixels": p.changed_pixels,
+                json!({"scene": r.name, "changed_pixels": p.changed_pixels, "reach_pixels": p.reach_pixels,
             "matched_views": p.matched_views, "views": p.views, "region_cells": p.region_cells,
             "region_volume": p.region_volume, "seconds": p.seconds})
             })
@@ -322,13 +322,18 @@ pub(super) fn demo(out: &Path, steps: Option<u32>, size: Option<u32>, seed: Opti
     Ok(())
 }
 
-/// The prior's settings with `--beta U,E`, `--region-floor S|off` and `--focus-share F` applied.
+/// The prior's settings with `--beta U,E`, `--region-floor S|off`, `--focus-share F` and
+/// `--region-vote V,S` applied.
 pub fn prior_config(
     beta: Option<(f32, f32)>,
     floor: Option<Option<f32>>,
     focus_share: Option<f32>,
+    region_vote: Option<(f32, f32)>,
 ) -> crate::train::prior::PriorConfig {
     let mut p = crate::train::prior::PriorConfig::default();
+    if let Some((vote, seen)) = region_vote {
+        (p.vote, p.min_seen) = (vote, seen);
+    }
     if let Some(share) = focus_share {
         p.change_share = share;
     }

@@ -176,7 +176,7 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
             );
             extra.push(("background_file", bg_path.display().to_string()));
             extra.push(("train_prior", format!("{hints:?}")));
-            let pcfg = crate::app::compare::prior_config(a.beta, a.region_floor, a.focus_share);
+            let pcfg = crate::app::compare::prior_config(a.beta, a.region_floor, a.focus_share, a.region_vote);
             let prior = (hints != Prior::NONE).then(|| {
                 let bg_views = match &a.background_data {
                     Some(dir) => {
@@ -189,11 +189,12 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
                 let p = scene_prior(isa, &bg, &bg_views, &data.views, cfg.background, m, &pcfg);
                 eprintln!(
                     "rnerf train: background prior: {:.1}% of the pixels changed ({}/{} views against background \
-                     images), change region {} cells",
+                     images), change region {} cells, crossed by the rays of {:.1}% of the pixels",
                     100.0 * p.changed_share(),
                     p.matched_views,
                     data.views.len(),
-                    p.region.count()
+                    p.region.count(),
+                    100.0 * p.reach_share()
                 );
                 Ok::<_, String>(p)
             });

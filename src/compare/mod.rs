@@ -112,7 +112,7 @@ const ACTIVATED: MixKind = MixKind::Mixnet(DensityMix::Activated);
 
 /// Every method with its name (file names, json, `--methods`) and label (tables, plots), in
 /// table order.
-const ALL: [(Method, &str, &str); 14] = [
+const ALL: [(Method, &str, &str); 15] = [
     (Method::Dex, "dex", "Dex-NeRF"),
     (Method::FineTune, "finetune", "Fine-tuned background"),
     (Method::RESIDUAL, "residual", "Residual-NeRF"),
@@ -123,6 +123,7 @@ const ALL: [(Method, &str, &str); 14] = [
     ),
     (residual(RAW, false, Prior { region: false, ..Prior::ALL }), "residual-no-region", "Residual-NeRF (no region)"),
     (residual(RAW, false, Prior { focus: false, ..Prior::ALL }), "residual-no-focus", "Residual-NeRF (no focus)"),
+    (residual(RAW, false, Prior { reach: false, ..Prior::ALL }), "residual-no-reach", "Residual-NeRF (no reach)"),
     (residual(RAW, false, Prior { beta: false, ..Prior::ALL }), "residual-no-beta", "Residual-NeRF (no β terms)"),
     (residual(ACTIVATED, false, Prior::ALL), "residual-activated", "Residual-NeRF (activated mix)"),
     (
@@ -253,6 +254,8 @@ pub struct MethodResult {
 pub struct PriorSummary {
     /// Share of the training pixels marked changed.
     pub changed_pixels: f64,
+    /// Share of the training pixels whose ray crosses the change region.
+    pub reach_pixels: f64,
     /// Training views compared with a background image at the same pose (the rest against
     /// the rendered background).
     pub matched_views: usize,
@@ -418,6 +421,7 @@ pub fn run_scene(
         let p = scene_prior(isa, background, bg_views, train, cfg.train.background, cfg.m, &cfg.prior);
         let summary = PriorSummary {
             changed_pixels: p.changed_share(),
+            reach_pixels: p.reach_share(),
             matched_views: p.matched_views,
             views: train.len(),
             region_cells: p.region.count(),
@@ -572,13 +576,14 @@ pub fn table(results: &[SceneResult]) -> String {
             let _ = writeln!(
                 s,
                 "\n{}: background prior: {} of the training pixels changed ({}/{} views against a background image at \
-                 the same pose, the rest against the rendered background); change region {} cells ({:.4} m³); {:.1} s",
+                 the same pose, the rest against the rendered background); change region {} cells ({:.4} m³), crossed by the rays of {} of the pixels; {:.1} s",
                 r.name,
                 pct(p.changed_pixels),
                 p.matched_views,
                 p.views,
                 p.region_cells,
                 p.region_volume,
+                pct(p.reach_pixels),
                 p.seconds
             );
         }

@@ -111,6 +111,19 @@ pub struct ResidualChunk {
     /// β of the kept rows, and extra dL/dβ (a regulariser's) for the backward to add.
     beta: Vec<f32>,
     d_beta: Vec<f32>,
+    /// The chunk's rows the residual and the Mixnet evaluate, ascending: all rows, or with a
+    /// change region those inside it (outside it the field is the background and they are
+    /// skipped). Row `k` of `res` and `mix` is chunk row `inside[k]`.
+    inside: Vec<u32>,
+    /// Scratch for the inside rows: positions or directions, outputs, kept rows, gradients.
+    sub_pos: Vec<Vec3>,
+    sub_out: Vec<f32>,
+    sub_rgb: Vec<[f32; 3]>,
+    sub_keep: Vec<u32>,
+    sub_inside: Vec<u32>,
+    sub_d_s: Vec<f32>,
+    sub_d_c: Vec<[f32; 3]>,
+    sub_d_m: Vec<f32>,
 }
 
 impl ResidualChunk {
@@ -400,7 +413,9 @@ impl ResidualField {
     }
 
     /// Mixed σ of `positions`: as the chunk's rows `from..` when `rows` is `Some(from)`,
-    /// keeping everything the colour half needs; σ alone when `None`.
+    /// keeping everything the colour half needs; σ alone when `None`. The background is
+    /// evaluated on every row, the residual and the Mixnet only on the rows inside the change
+    /// region (all rows without one); outside it β = 0 and the mix is the background's.
     fn chunk_sigma(
         &self,
         isa: Isa,
@@ -418,25 +433,55 @@ impl ResidualField {
             v.truncate(from);
             v.resize(from + n, 0.0);
         }
-        let (s_bg, s_res) = (&mut c.s_bg[from..], &mut c.s_res[from..]);
+        // The rows before `from` stay (a chunk grows from its end); pick the new inside rows.
+        c.inside.retain(|&r| (r as usize) < from);
+        let sub_from = c.inside.len();
+        c.sub_pos.clear();
+        for (i, &p) in positions.iter().enumerate() {
+            if self.region.as_ref().is_none_or(|r| r.contains(p)) {
+                c.inside.push((from + i) as u32);
+                c.sub_pos.push(p);
+            }
+        }
+        c.sub_out.clear();
+        c.sub_out.resize(c.sub_pos.len(), 0.0);
+        let s_bg = &mut c.s_bg[from..];
         match rows {
-            Some(from) => {
+            Some(_) => {
                 bg.field.chunk_density(isa, &bg.params, from, positions, s_bg, &mut c.bg);
-                self.residual.chunk_density(isa, &params.residual, from, positions, s_res, &mut c.res);
+                self.residual.chunk_density(isa, &params.residual, sub_from, &c.sub_pos, &mut c.sub_out, &mut c.res);
             }
             None => {
                 bg.field.chunk_density_only(isa, &bg.params, positions, s_bg, &mut c.bg);
-                self.residual.chunk_density_only(isa, &params.residual, positions, s_res, &mut c.res);
+                self.residual.chunk_density_only(isa, &params.residual, &c.sub_pos, &mut c.sub_out, &mut c.res);
+            }
+        }
+        // Rows outside: the residual's raw density set to the background's (any finite value
+        // mixes to the background at β = 0) and the logit to −∞ (β = 0).
+        let new_inside = &c.inside[sub_from..];
+        let mut k = 0;
+        for i in from..from + n {
+            match new_inside.get(k) {
+                Some(&r) if r as usize == i => {
+                    c.s_res[i] = c.sub_out[k];
+                    k += 1;
+                }
+                _ => {
+                    c.s_res[i] = c.s_bg[i];
+                    c.logits[i] = f32::NEG_INFINITY;
+                }
             }
         }
         if matches!(self.kind, MixKind::Mixnet(_)) {
             let shared = (self.mixnet.grid().is_none()).then(|| c.res.features());
-            let (mixnet, p, logits) = (&self.mixnet, &params.mixnet, &mut c.logits[from..]);
+            let (mixnet, p, logits) = (&self.mixnet, &params.mixnet, &mut c.sub_out);
             match rows {
-                Some(from) => mixnet.chunk_forward(isa, p, from, positions, shared, logits, &mut c.mix),
-                None => mixnet.chunk_logits(isa, p, positions, shared, logits, &mut c.mix),
+                Some(_) => mixnet.chunk_forward(isa, p, sub_from, &c.sub_pos, shared, logits, &mut c.mix),
+                None => mixnet.chunk_logits(isa, p, &c.sub_pos, shared, logits, &mut c.mix),
             }
-            self.mask_logits(positions, &mut c.logits[from..]);
+            for (&r, &m) in c.inside[sub_from..].iter().zip(&c.sub_out) {
+                c.logits[r as usize] = m;
+            }
         }
         for (i, s) in sigma.iter_mut().enumerate() {
             let j = from + i;
@@ -461,18 +506,42 @@ impl ResidualField {
         assert!(dirs.len() == n && rgb.len() == n, "residual: buffers differ from the kept rows");
         let bg = &self.background;
         bg.field.chunk_keep(&mut c.bg, keep);
-        self.residual.chunk_keep(&mut c.res, keep);
+        // The kept inside rows: their index among the inside rows (to keep in `res` and `mix`)
+        // and among the kept rows (their new chunk row).
+        c.sub_keep.clear();
+        c.sub_inside.clear();
+        c.sub_pos.clear();
+        let mut j = 0;
+        for (i, &row) in keep.iter().enumerate() {
+            while j < c.inside.len() && c.inside[j] < row {
+                j += 1;
+            }
+            if c.inside.get(j) == Some(&row) {
+                c.sub_keep.push(j as u32);
+                c.sub_inside.push(i as u32);
+                c.sub_pos.push(dirs[i]);
+            }
+        }
+        std::mem::swap(&mut c.inside, &mut c.sub_inside);
+        self.residual.chunk_keep(&mut c.res, &c.sub_keep);
         if matches!(self.kind, MixKind::Mixnet(_)) {
-            self.mixnet.chunk_keep(&mut c.mix, keep);
+            self.mixnet.chunk_keep(&mut c.mix, &c.sub_keep);
         }
         for v in [&mut c.s_bg, &mut c.s_res, &mut c.logits] {
             crate::mlp::keep_rows(v, 1, keep);
             v.truncate(n);
         }
         c.c_bg.resize(n, [0.0; 3]);
-        c.c_res.resize(n, [0.0; 3]);
         bg.field.chunk_colour(isa, &bg.params, dirs, &mut c.c_bg, &mut c.bg);
-        self.residual.chunk_colour(isa, &params.residual, dirs, &mut c.c_res, &mut c.res);
+        c.sub_rgb.clear();
+        c.sub_rgb.resize(c.inside.len(), [0.0; 3]);
+        self.residual.chunk_colour(isa, &params.residual, &c.sub_pos, &mut c.sub_rgb, &mut c.res);
+        // Rows outside: the background's pre-sigmoid colour (mixes to it at β = 0).
+        c.c_res.clear();
+        c.c_res.extend_from_slice(&c.c_bg);
+        for (&r, &rgb) in c.inside.iter().zip(&c.sub_rgb) {
+            c.c_res[r as usize] = rgb;
+        }
         c.inputs.clear();
         c.inputs.extend((0..n).map(|i| MixInput {
             s_bg: c.s_bg[i],
@@ -512,13 +581,24 @@ impl ResidualField {
         for ((d_m, &d_b), &b) in c.d_m.iter_mut().zip(&c.d_beta).zip(&c.beta) {
             *d_m += d_b * b * (1.0 - b);
         }
+        // Only the inside rows reach the residual and the Mixnet (outside, β = 0: their
+        // derivatives are zero).
+        c.sub_d_s.clear();
+        c.sub_d_c.clear();
+        c.sub_d_m.clear();
+        for &r in &c.inside {
+            let r = r as usize;
+            c.sub_d_s.push(c.d_s_res[r]);
+            c.sub_d_c.push(c.d_c_res[r]);
+            c.sub_d_m.push(c.d_m[r]);
+        }
         let mixnet = matches!(self.kind, MixKind::Mixnet(_));
         let shared = self.mixnet.grid().is_none();
         if mixnet {
             let features = shared.then(|| c.res.features());
-            self.mixnet.chunk_backward(isa, &params.mixnet, &mut c.mix, features, &c.d_m, &mut g.mixnet);
+            self.mixnet.chunk_backward(isa, &params.mixnet, &mut c.mix, features, &c.sub_d_m, &mut g.mixnet);
         }
-        self.residual.chunk_backward(isa, &params.residual, &mut c.res, &c.d_s_res, &c.d_c_res, &mut g.residual);
+        self.residual.chunk_backward(isa, &params.residual, &mut c.res, &c.sub_d_s, &c.sub_d_c, &mut g.residual);
         if mixnet && shared {
             c.res.d_enc.iter_mut().zip(c.mix.feature_grad()).for_each(|(d, m)| *d += m);
         }

@@ -113,8 +113,13 @@ pub fn save_checkpoint<M: ModelFile>(
     }
     if let Some(f) = &config.focus {
         // (view, pixel) pairs as f32: exact below 2^24, which the loader checks.
-        let flat: Vec<f32> = f.pixels.iter().flat_map(|&(v, p)| [v as f32, p as f32]).collect();
-        w.tensor("train.focus.pixels", vec![flat.len()], &flat).map_err(at)?;
+        let flat = |list: &[(u32, u32)]| -> Vec<f32> { list.iter().flat_map(|&(v, p)| [v as f32, p as f32]).collect() };
+        let pixels = flat(&f.pixels);
+        w.tensor("train.focus.pixels", vec![pixels.len()], &pixels).map_err(at)?;
+        if let Some(reach) = &f.reach {
+            let reach = flat(reach);
+            w.tensor("train.focus.reach", vec![reach.len()], &reach).map_err(at)?;
+        }
         w.meta("train_focus_share", &f.share.to_string());
     }
     let meta = json!({
@@ -147,6 +152,23 @@ pub fn checkpoint_from_bytes(bytes: &[u8]) -> Result<(LoadedModel, Checkpoint), 
     Ok((model, read_checkpoint(&r, occupancy)?))
 }
 
+/// A tensor of `(view, pixel)` pairs stored as f32 (exact below 2^24).
+fn pixel_pairs(r: &ModelReader, name: &str) -> Result<Vec<(u32, u32)>, String> {
+    let flat = flat_tensor(r, name)?;
+    if flat.len() % 2 != 0 {
+        return Err(format!("tensor '{name}' does not hold (view, pixel) pairs"));
+    }
+    let mut pixels = Vec::with_capacity(flat.len() / 2);
+    for (i, pair) in flat.chunks(2).enumerate() {
+        let ok = |x: f32| x.is_finite() && x >= 0.0 && x.fract() == 0.0 && x < (1u32 << 24) as f32;
+        if !(ok(pair[0]) && ok(pair[1])) {
+            return Err(format!("tensor '{name}' holds a bad (view, pixel) pair at {i}"));
+        }
+        pixels.push((pair[0] as u32, pair[1] as u32));
+    }
+    Ok(pixels)
+}
+
 fn read_checkpoint(r: &ModelReader, occupancy: OccupancyConfig) -> Result<Checkpoint, String> {
     let text =
         r.meta("checkpoint").map_err(|_| "not a checkpoint (a finished model: no training state)".to_string())?;
@@ -169,19 +191,12 @@ fn read_checkpoint(r: &ModelReader, occupancy: OccupancyConfig) -> Result<Checkp
             .ok()
             .filter(|s: &f32| (0.0..=1.0).contains(s))
             .ok_or_else(|| format!("metadata 'train_focus_share' = '{share}' is not in [0, 1]"))?;
-        let flat = flat_tensor(r, "train.focus.pixels")?;
-        if flat.len() % 2 != 0 {
-            return Err("tensor 'train.focus.pixels' does not hold (view, pixel) pairs".into());
-        }
-        let mut pixels = Vec::with_capacity(flat.len() / 2);
-        for (i, pair) in flat.chunks(2).enumerate() {
-            let ok = |x: f32| x.is_finite() && x >= 0.0 && x.fract() == 0.0 && x < (1u32 << 24) as f32;
-            if !(ok(pair[0]) && ok(pair[1])) {
-                return Err(format!("tensor 'train.focus.pixels' holds a bad (view, pixel) pair at {i}"));
-            }
-            pixels.push((pair[0] as u32, pair[1] as u32));
-        }
-        config.focus = Some(crate::train::trainer::Focus { share, pixels: std::sync::Arc::new(pixels) });
+        let pixels = pixel_pairs(r, "train.focus.pixels")?;
+        let reach = match r.shape("train.focus.reach").is_ok() {
+            true => Some(std::sync::Arc::new(pixel_pairs(r, "train.focus.reach")?)),
+            false => None,
+        };
+        config.focus = Some(crate::train::trainer::Focus { share, pixels: std::sync::Arc::new(pixels), reach });
     }
     if step > config.steps {
         return Err(format!("metadata 'checkpoint': step {step} is past the run's {} steps", config.steps));

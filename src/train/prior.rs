@@ -19,6 +19,11 @@
 //!    region is then dilated by [`PriorConfig::region_dilate`] cells.
 //! 4. **Focus pixels**: the changed pixels of every view, from which the trainer draws
 //!    [`PriorConfig::change_share`] of each step's rays ([`crate::train::trainer::Focus`]).
+//! 5. **Reach pixels** ([`reach_pixels`]): the pixels whose ray crosses the region in front of
+//!    the background's surface. Outside the region the field is the frozen background, so a ray
+//!    that misses it carries no gradient; with the region the trainer draws the rest of each
+//!    step's rays from these pixels (changed or not: the unchanged ones carve the region's
+//!    floaters) instead of from the whole image.
 
 use crate::field::region::ChangeRegion;
 use crate::field::residual::{ResidualConfig, ResidualField, ResidualParams};
@@ -52,9 +57,9 @@ pub struct PriorConfig {
     pub dilate_px: u32,
     /// Share of the views that see a cell which must see a change there. Defaults to 0.5.
     pub vote: f32,
-    /// Share of the views that must see a cell before it can be changed (and at least 3
-    /// views). Defaults to 0 (3 views: the rule measured on the dev set); a larger share carves
-    /// cells seen by a few views only (near a wall, above the cameras) out of the region.
+    /// Share of all views that must see a cell before it can be changed (and at least 3
+    /// views). Defaults to 0.25: cells seen by a few views only (near a wall, in front of a
+    /// camera) are carved out of the region (docs/DECISIONS.md, "A tight change region").
     pub min_seen: f32,
     /// Whether a view whose background depth has a hole at the cell's pixel sees the cell (the
     /// hole read as "no surface up to infinity"). Defaults to true (as measured on the dev set,
@@ -85,7 +90,7 @@ impl Default for PriorConfig {
             tolerance: 0.05,
             dilate_px: 2,
             vote: 0.5,
-            min_seen: 0.0,
+            min_seen: 0.25,
             holes_see: true,
             region_dilate: 1,
             change_share: 0.5,
@@ -106,12 +111,19 @@ pub struct ScenePrior {
     pub region: ChangeRegion,
     /// `(view, pixel)` of every changed pixel.
     pub focus: Vec<(u32, u32)>,
+    /// `(view, pixel)` of every pixel whose ray crosses the region ([`reach_pixels`]).
+    pub reach: Vec<(u32, u32)>,
 }
 
 impl ScenePrior {
     /// Share of the training pixels marked changed.
     pub fn changed_share(&self) -> f64 {
         self.focus.len() as f64 / self.maps.iter().map(Vec::len).sum::<usize>().max(1) as f64
+    }
+
+    /// Share of the training pixels whose ray crosses the region.
+    pub fn reach_share(&self) -> f64 {
+        self.reach.len() as f64 / self.maps.iter().map(Vec::len).sum::<usize>().max(1) as f64
     }
 }
 
@@ -276,7 +288,65 @@ pub fn vote_region(
     region.dilated(cfg.region_dilate)
 }
 
-/// The whole prior of a scene: colours, change maps, region and focus pixels.
+/// The pixels of `views` whose ray crosses a cell of `region` in front of the background's
+/// threshold z-depth there (`depth`, per view; within a cell diagonal, as the vote; a hole in
+/// the depth is no surface), as `(view, pixel)` in view then pixel order. Each cell is splatted
+/// as the bounding box of its projected corners, so the set is conservative (a pixel just
+/// beside a cell's silhouette may be in it, one whose ray crosses the cell is).
+pub fn reach_pixels(region: &ChangeRegion, views: &[View], depth: &[Vec<f32>]) -> Vec<(u32, u32)> {
+    assert_eq!(views.len(), depth.len(), "prior: one depth per view");
+    let cells = region.cells();
+    let size = region.aabb().size() / region.resolution() as f32;
+    let margin = size.length();
+    let per_view: Vec<Vec<(u32, u32)>> = views
+        .par_iter()
+        .zip(depth)
+        .enumerate()
+        .map(|(vi, (v, zb))| {
+            let k = &v.intrinsics;
+            let (w, h) = (k.width as usize, k.height as usize);
+            let mut hit = vec![false; w * h];
+            for &c in &cells {
+                let lo = region.cell_centre(c as usize) - 0.5 * size;
+                let (mut x0, mut y0, mut x1, mut y1) = (f32::MAX, f32::MAX, f32::MIN, f32::MIN);
+                let mut near = f32::MAX;
+                let mut behind = false;
+                for corner in 0..8 {
+                    let off = Vec3::new((corner & 1) as f32, (corner >> 1 & 1) as f32, (corner >> 2) as f32);
+                    let c = v.pose.rotation.transpose() * (lo + off * size - v.pose.translation);
+                    let zc = -c.z;
+                    if zc <= 1e-3 {
+                        behind = true;
+                        break;
+                    }
+                    let (px, py) = (k.cx + k.fx * c.x / zc, k.cy - k.fy * c.y / zc);
+                    (x0, y0, x1, y1) = (x0.min(px), y0.min(py), x1.max(px), y1.max(py));
+                    near = near.min(zc);
+                }
+                // A cell reaching behind the camera: every pixel may see it.
+                let (xa, ya, xb, yb) = match behind {
+                    true => (0, 0, w as i64 - 1, h as i64 - 1),
+                    false => (x0.floor() as i64, y0.floor() as i64, x1.floor() as i64, y1.floor() as i64),
+                };
+                let (xa, ya) = (xa.max(0), ya.max(0));
+                let (xb, yb) = (xb.min(w as i64 - 1), yb.min(h as i64 - 1));
+                for y in ya..=yb {
+                    for x in xa..=xb {
+                        let pix = y as usize * w + x as usize;
+                        let surface = zb[pix];
+                        if behind || !surface.is_finite() || near <= surface + margin {
+                            hit[pix] = true;
+                        }
+                    }
+                }
+            }
+            hit.iter().enumerate().filter(|(_, &h)| h).map(|(p, _)| (vi as u32, p as u32)).collect()
+        })
+        .collect();
+    per_view.into_iter().flatten().collect()
+}
+
+/// The whole prior of a scene: colours, change maps, region, focus and reach pixels.
 pub fn scene_prior(
     isa: Isa,
     background: &Nerf,
@@ -294,12 +364,13 @@ pub fn scene_prior(
         .collect();
     let depth: Vec<Vec<f32>> = bg.into_iter().map(|(_, z)| z).collect();
     let region = vote_region(&background.occupancy, views, &maps, &depth, cfg);
+    let reach = reach_pixels(&region, views, &depth);
     let focus = maps
         .iter()
         .enumerate()
         .flat_map(|(i, map)| map.iter().enumerate().filter(|(_, &c)| c).map(move |(p, _)| (i as u32, p as u32)))
         .collect();
-    ScenePrior { maps, matched_views, region, focus }
+    ScenePrior { maps, matched_views, region, focus, reach }
 }
 
 /// Which of the background's hints a residual model uses.
@@ -314,13 +385,16 @@ pub struct Prior {
     pub focus: bool,
     /// The β regularisers of [`PriorConfig::beta`].
     pub beta: bool,
+    /// With the region: draw the rays that are not focused from the pixels whose ray crosses
+    /// the region ([`ScenePrior::reach`]) instead of from all pixels.
+    pub reach: bool,
 }
 
 impl Prior {
     /// None: the paper's Residual-NeRF.
-    pub const NONE: Prior = Prior { warm_start: false, region: false, focus: false, beta: false };
+    pub const NONE: Prior = Prior { warm_start: false, region: false, focus: false, beta: false, reach: false };
     /// All: the background-aware Residual-NeRF (the default).
-    pub const ALL: Prior = Prior { warm_start: true, region: true, focus: true, beta: true };
+    pub const ALL: Prior = Prior { warm_start: true, region: true, focus: true, beta: true, reach: true };
 }
 
 /// Where a residual model's training starts.
@@ -381,8 +455,13 @@ pub fn residual_start(
         }
     }
     let share = if hints.focus { pcfg.change_share } else { 0.0 };
-    let focus = match (hints.focus || hints.beta, prior) {
-        (true, Some(p)) => Some(Focus { share, pixels: std::sync::Arc::new(p.focus.clone()) }),
+    let reach = hints.reach && hints.region;
+    let focus = match (hints.focus || hints.beta || reach, prior) {
+        (true, Some(p)) => Some(Focus {
+            share,
+            pixels: std::sync::Arc::new(p.focus.clone()),
+            reach: reach.then(|| std::sync::Arc::new(p.reach.clone())),
+        }),
         _ => None,
     };
     let beta = if hints.beta { pcfg.beta } else { BetaRegulariser::default() };

@@ -96,6 +96,10 @@ pub struct Focus {
     pub share: f32,
     /// `(view, pixel)` pairs (pixel = `y · width + x`).
     pub pixels: std::sync::Arc<Vec<(u32, u32)>>,
+    /// `(view, pixel)` pairs the other rays are drawn from (a residual model's pixels whose ray
+    /// crosses its change region: the only rays with a gradient); `None` or empty: all pixels
+    /// of all views.
+    pub reach: Option<std::sync::Arc<Vec<(u32, u32)>>>,
 }
 
 /// Default of [`TrainConfig::near_gradient_distance`] (chosen by measured depth; docs/DECISIONS.md).
@@ -564,11 +568,16 @@ impl<'a, M: Model> Trainer<'a, M> {
             return Err(format!("state is at step {}, past the run's {} steps", state.step, cfg.steps));
         }
         if let Some(f) = &cfg.focus {
-            let bad = f.pixels.iter().find(|&&(v, p)| {
-                views.get(v as usize).is_none_or(|v| p as u64 >= v.intrinsics.width as u64 * v.intrinsics.height as u64)
-            });
-            if let Some((v, p)) = bad {
-                return Err(format!("focus pixel {p} of view {v} is outside the training views"));
+            let lists = [("focus", Some(&f.pixels)), ("reach", f.reach.as_ref())];
+            for (name, list) in lists.into_iter().filter_map(|(n, l)| Some((n, l?))) {
+                let bad = list.iter().find(|&&(v, p)| {
+                    views
+                        .get(v as usize)
+                        .is_none_or(|v| p as u64 >= v.intrinsics.width as u64 * v.intrinsics.height as u64)
+                });
+                if let Some((v, p)) = bad {
+                    return Err(format!("{name} pixel {p} of view {v} is outside the training views"));
+                }
             }
         }
         let changed = match &cfg.focus {
@@ -657,8 +666,8 @@ impl<'a, M: Model> Trainer<'a, M> {
             let mut orng = Rng::stream(cfg.seed ^ 0x0CC, step as u64);
             occupancy.update(step, &mut orng, |pts, sigma| model.density(isa, params, pts, sigma, ctx));
         }
-        // 1. Rays: the focus share from the focus pixels, the rest uniform over all pixels of
-        //    all views.
+        // 1. Rays: the focus share from the focus pixels, the rest uniform over the reach pixels
+        //    when there are some, else over all pixels of all views.
         let mut srng = Rng::stream(cfg.seed, step as u64);
         rays.rays.clear();
         rays.targets.clear();
@@ -668,9 +677,11 @@ impl<'a, M: Model> Trainer<'a, M> {
             Some(f) if !f.pixels.is_empty() => (f.share.clamp(0.0, 1.0) * cfg.rays_per_step as f32).round() as usize,
             _ => 0,
         };
+        let reach = cfg.focus.as_ref().and_then(|f| f.reach.as_deref()).filter(|r| !r.is_empty());
         for r in 0..cfg.rays_per_step {
-            let (vi, p) = match &cfg.focus {
-                Some(f) if r < focused => f.pixels[srng.below(f.pixels.len() as u64) as usize],
+            let (vi, p) = match (&cfg.focus, reach) {
+                (Some(f), _) if r < focused => f.pixels[srng.below(f.pixels.len() as u64) as usize],
+                (_, Some(reach)) => reach[srng.below(reach.len() as u64) as usize],
                 _ => {
                     let vi = srng.below(views.len() as u64) as u32;
                     let v = &views[vi as usize];
