@@ -3,7 +3,7 @@
 //! [`super::mix`]. Forward gives activated σ and colour (what compositing needs); backward
 //! takes dL/dσ and dL/dc and fills gradients of the residual and the Mixnet only.
 
-use super::mix::{mix_backward_rows, mix_forward, MixInput, MixKind, MixOutput};
+use super::mix::{mix_backward, mix_backward_rows, mix_forward, MixInput, MixKind, MixOutput};
 use super::mixnet::{Mixnet, MixnetChunk, MixnetContext, MixnetEncoding, MixnetGrads, MixnetParams};
 use super::region::ChangeRegion;
 use super::{FieldChunk, FieldContext, Nerf, NerfConfig, NerfField, NerfGrads, NerfParams, NetGrads};
@@ -105,6 +105,7 @@ pub struct ResidualChunk {
     c_res: Vec<[f32; 3]>,
     inputs: Vec<MixInput>,
     outputs: Vec<MixOutput>,
+    /// dL/d(s_res, c′_res, m) of the inside rows (the residual's and the Mixnet's rows).
     d_s_res: Vec<f32>,
     d_c_res: Vec<[f32; 3]>,
     d_m: Vec<f32>,
@@ -115,15 +116,12 @@ pub struct ResidualChunk {
     /// change region those inside it (outside it the field is the background and they are
     /// skipped). Row `k` of `res` and `mix` is chunk row `inside[k]`.
     inside: Vec<u32>,
-    /// Scratch for the inside rows: positions or directions, outputs, kept rows, gradients.
+    /// Scratch for the inside rows: positions or directions, outputs, kept rows.
     sub_pos: Vec<Vec3>,
     sub_out: Vec<f32>,
     sub_rgb: Vec<[f32; 3]>,
     sub_keep: Vec<u32>,
     sub_inside: Vec<u32>,
-    sub_d_s: Vec<f32>,
-    sub_d_c: Vec<[f32; 3]>,
-    sub_d_m: Vec<f32>,
 }
 
 impl ResidualChunk {
@@ -576,29 +574,27 @@ impl ResidualField {
     ) {
         let n = c.inputs.len();
         assert!(d_sigma.len() == n && d_rgb.len() == n, "residual: gradient buffers differ from the kept rows");
-        mix_backward_rows(self.kind, &c.inputs, &c.outputs, d_sigma, d_rgb, &mut c.d_s_res, &mut c.d_c_res, &mut c.d_m);
-        // A regulariser's dL/dβ, through β = sigmoid(m) (0 where β is exactly 0 or 1).
-        for ((d_m, &d_b), &b) in c.d_m.iter_mut().zip(&c.d_beta).zip(&c.beta) {
-            *d_m += d_b * b * (1.0 - b);
-        }
-        // Only the inside rows reach the residual and the Mixnet (outside, β = 0: their
-        // derivatives are zero).
-        c.sub_d_s.clear();
-        c.sub_d_c.clear();
-        c.sub_d_m.clear();
+        // The mix's derivatives on the inside rows only (outside, β = 0: they are zero), in
+        // the residual's and the Mixnet's row order; a regulariser's dL/dβ joins dL/dm through
+        // β = sigmoid(m) (0 where β is exactly 0 or 1).
+        c.d_s_res.clear();
+        c.d_c_res.clear();
+        c.d_m.clear();
         for &r in &c.inside {
             let r = r as usize;
-            c.sub_d_s.push(c.d_s_res[r]);
-            c.sub_d_c.push(c.d_c_res[r]);
-            c.sub_d_m.push(c.d_m[r]);
+            let g = mix_backward(self.kind, &c.inputs[r], &c.outputs[r], d_sigma[r], d_rgb[r]);
+            let b = c.beta[r];
+            c.d_s_res.push(g.s_res);
+            c.d_c_res.push(g.c_res);
+            c.d_m.push(g.m + c.d_beta[r] * b * (1.0 - b));
         }
         let mixnet = matches!(self.kind, MixKind::Mixnet(_));
         let shared = self.mixnet.grid().is_none();
         if mixnet {
             let features = shared.then(|| c.res.features());
-            self.mixnet.chunk_backward(isa, &params.mixnet, &mut c.mix, features, &c.sub_d_m, &mut g.mixnet);
+            self.mixnet.chunk_backward(isa, &params.mixnet, &mut c.mix, features, &c.d_m, &mut g.mixnet);
         }
-        self.residual.chunk_backward(isa, &params.residual, &mut c.res, &c.sub_d_s, &c.sub_d_c, &mut g.residual);
+        self.residual.chunk_backward(isa, &params.residual, &mut c.res, &c.d_s_res, &c.d_c_res, &mut g.residual);
         if mixnet && shared {
             c.res.d_enc.iter_mut().zip(c.mix.feature_grad()).for_each(|(d, m)| *d += m);
         }

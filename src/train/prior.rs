@@ -229,6 +229,14 @@ pub fn change_map(scene: &[[f32; 3]], background: &[[f32; 3]], w: u32, h: u32, c
     out
 }
 
+/// World point `p` in `v`'s image: pixel coordinates and camera z-depth, `None` when it is not
+/// in front of the camera (z ≤ 1 mm).
+fn project(v: &View, p: Vec3) -> Option<(f32, f32, f32)> {
+    let (k, c) = (&v.intrinsics, v.pose.rotation.transpose() * (p - v.pose.translation));
+    let zc = -c.z;
+    (zc > 1e-3).then(|| (k.cx + k.fx * c.x / zc, k.cy - k.fy * c.y / zc, zc))
+}
+
 /// Votes the change maps into a region over the cells of `grid` (the background's occupancy
 /// grid), given the background's threshold z-depth per view (NaN at holes; module docs).
 pub fn vote_region(
@@ -253,12 +261,7 @@ pub fn vote_region(
                 let (mut seen, mut hit) = (0u32, 0u32);
                 for ((v, map), zb) in views.iter().zip(maps).zip(depth) {
                     let k = &v.intrinsics;
-                    let c = v.pose.rotation.transpose() * (p - v.pose.translation);
-                    let zc = -c.z;
-                    if zc <= 1e-3 {
-                        continue;
-                    }
-                    let (px, py) = (k.cx + k.fx * c.x / zc, k.cy - k.fy * c.y / zc);
+                    let Some((px, py, zc)) = project(v, p) else { continue };
                     if !(px >= 0.0 && py >= 0.0 && px < k.width as f32 && py < k.height as f32) {
                         continue;
                     }
@@ -313,13 +316,10 @@ pub fn reach_pixels(region: &ChangeRegion, views: &[View], depth: &[Vec<f32>]) -
                 let mut behind = false;
                 for corner in 0..8 {
                     let off = Vec3::new((corner & 1) as f32, (corner >> 1 & 1) as f32, (corner >> 2) as f32);
-                    let c = v.pose.rotation.transpose() * (lo + off * size - v.pose.translation);
-                    let zc = -c.z;
-                    if zc <= 1e-3 {
+                    let Some((px, py, zc)) = project(v, lo + off * size) else {
                         behind = true;
                         break;
-                    }
-                    let (px, py) = (k.cx + k.fx * c.x / zc, k.cy - k.fy * c.y / zc);
+                    };
                     (x0, y0, x1, y1) = (x0.min(px), y0.min(py), x1.max(px), y1.max(py));
                     near = near.min(zc);
                 }

@@ -568,8 +568,8 @@ impl<'a, M: Model> Trainer<'a, M> {
             return Err(format!("state is at step {}, past the run's {} steps", state.step, cfg.steps));
         }
         if let Some(f) = &cfg.focus {
-            let lists = [("focus", Some(&f.pixels)), ("reach", f.reach.as_ref())];
-            for (name, list) in lists.into_iter().filter_map(|(n, l)| Some((n, l?))) {
+            let lists = std::iter::once(("focus", &f.pixels)).chain(f.reach.as_ref().map(|r| ("reach", r)));
+            for (name, list) in lists {
                 let bad = list.iter().find(|&&(v, p)| {
                     views
                         .get(v as usize)
