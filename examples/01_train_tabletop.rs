@@ -23,6 +23,7 @@ fn main() {
     let mut cfg = TrainConfig::with_steps(steps);
     cfg.rays_per_step = 2048;
     cfg.background = synth::SKY;
+    cfg.random_background = false; // the sky shows where rays miss the scene
     cfg.occupancy = OccupancyConfig { resolution: 64, steps_per_diagonal: 256, max_samples: 512, ..Default::default() };
     let isa = Isa::detect();
     println!("training {steps} steps on {} views of {size}×{size} (cpu level {isa})", train.views.len());

@@ -2,6 +2,7 @@
 //! fuzzed like any other parser of untrusted input. Parsing never panics: every problem is a
 //! one-line [`CliError`] naming the flag.
 
+use crate::render::DepthMethod;
 use std::ffi::OsString;
 use std::fmt;
 use std::path::PathBuf;
@@ -14,7 +15,7 @@ commands:
          [--split NAME] [--csv FILE] [--lr LR] [--distortion L] [--near-grad D] [--fixed-background] [--background BG_MODEL [--mix mixnet|sum]
          [--density-mix raw|activated] [--mixnet-encoding own|shared] [--prior all|none|warm-start,region,focus,beta,reach]
          [--background-data BG_DIR] [--beta U,E] [--region-floor S|off] [--focus-share F]
-         [--region-vote V,S]] [--checkpoint-every N]
+         [--region-vote V,S] [--frozen-stride N]] [--checkpoint-every N]
          [--scene-views N]
          train a NeRF on DIR's transforms_<split>.json (default split: train); with --background,
          a Residual-NeRF (residual + Mixnet over the frozen background; --mix sum: Residual-NeRF-S),
@@ -38,13 +39,15 @@ commands:
   compare --background DIR --scene DIR [--scene DIR ...] --out DIR [--background-model MODEL]
          [--methods dex,finetune,residual-paper,residual,...] [--scene-views N] [--steps N] [--rays N]
          [--log2t N] [--seed S] [--eval-every N] [--m M | --m-raw S] [--m-sweep M,M,...] [--threads N]
-         [--beta U,E] [--region-floor S|off] [--focus-share F] [--region-vote V,S]
+         [--beta U,E] [--region-floor S|off] [--focus-share F] [--region-vote V,S] [--frozen-stride N]
          (--m-sweep: also score the final models at these σ thresholds, default 3,10,20,40;
          --beta: weights of the background-aware methods' β penalty and entropy;
          --region-floor: lift the warm-started residual's raw density in the change region to S;
          --focus-share: share of each step's rays drawn from changed pixels, default 0.5;
          --region-vote: a cell is in the change region when at least S of all views see it and
          at least V of those see a change there, default 0.5,0.25;
+         --frozen-stride: outside the change region one training sample stands for N marching
+         steps of the frozen background, default 1 (every step);
          methods: dex, finetune, residual, residual-no-warm-start, residual-no-region,
          residual-no-focus, residual-no-reach, residual-no-beta, residual-activated, residual-activated-no-warm-start,
          residual-paper, residual-paper-activated, residual-paper-shared,
@@ -68,26 +71,6 @@ threshold depth: --m M is a density sigma >= M per unit of the dataset's coordin
 environment: RNERF_CPU_LEVEL=scalar|avx2|avx512|amx|neon lowers the SIMD level (never raises it;
   x86: scalar < avx2 < avx512 < amx, aarch64: scalar < neon)";
 
-/// How depth is read off a ray.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum DepthChoice {
-    /// First sample with σ ≥ m (`--m`, per dataset unit) — Dex-NeRF.
-    Threshold(crate::render::DensityThreshold),
-    /// `Σ w t` (paper Eq. 3).
-    Expected,
-}
-
-impl DepthChoice {
-    /// The density threshold used for threshold depth (for `Expected`, the one a full render
-    /// still reports beside it: the default m).
-    pub fn threshold(self) -> crate::render::DensityThreshold {
-        match self {
-            DepthChoice::Threshold(m) => m,
-            DepthChoice::Expected => crate::render::DensityThreshold::Sigma(DEFAULT_M),
-        }
-    }
-}
-
 /// Scoring crop of `rnerf eval`.
 pub use crate::eval::CropRule;
 
@@ -107,7 +90,7 @@ pub enum Command {
         /// Split (`--split`, default `test`).
         split: String,
         /// Depth method (`--depth`, `--m`, `--m-raw`).
-        depth: DepthChoice,
+        depth: DepthMethod,
         /// Worker threads (`--threads`).
         threads: Option<usize>,
     },
@@ -120,7 +103,7 @@ pub enum Command {
         /// Split (`--split`, default `test`).
         split: String,
         /// Depth method (`--depth`, `--m`, `--m-raw`).
-        depth: DepthChoice,
+        depth: DepthMethod,
         /// Scoring crop (`--crop`, default the frames' own).
         crop: CropRule,
         /// Score only ground truth nearer than this (`--limit`, metres).
@@ -222,6 +205,9 @@ pub struct TrainArgs {
     /// The region's vote: share of the seeing views that must see a change, share of all
     /// views that must see the cell (`--region-vote V,S`).
     pub region_vote: Option<(f32, f32)>,
+    /// Lattice steps per training sample outside a residual model's change region
+    /// (`--frozen-stride N`).
+    pub frozen_stride: Option<u32>,
 }
 
 /// Arguments of `rnerf compare`.
@@ -266,6 +252,9 @@ pub struct CompareArgs {
     /// The region's vote: share of the seeing views that must see a change, share of all
     /// views that must see the cell (`--region-vote V,S`).
     pub region_vote: Option<(f32, f32)>,
+    /// Lattice steps per training sample outside a residual model's change region
+    /// (`--frozen-stride N`).
+    pub frozen_stride: Option<u32>,
 }
 
 /// A command-line error: one line saying what is wrong and where.
@@ -283,11 +272,6 @@ impl std::error::Error for CliError {}
 fn err(msg: impl Into<String>) -> CliError {
     CliError(msg.into())
 }
-
-/// Default density threshold: σ ≥ 10 per dataset unit (per metre). The paper's m = 3 is in
-/// its own units (the authors' code tests raw s > 3, σ > e³); on the dev background σ ≥ 10/m
-/// gave the lowest depth error of 3, 10 and 20 (docs/DECISIONS.md, "The engine").
-pub const DEFAULT_M: f32 = 10.0;
 
 /// Thresholds `rnerf compare` also scores the final models at (σ per dataset unit).
 pub const DEFAULT_M_SWEEP: [f32; 4] = [3.0, 10.0, 20.0, 40.0];
@@ -333,6 +317,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             "region-floor",
             "focus-share",
             "region-vote",
+            "frozen-stride",
         ],
         "render" => &["model", "data", "out", "split", "depth", "m", "m-raw", "threads"],
         "eval" => &["model", "data", "split", "depth", "m", "m-raw", "crop", "limit", "json", "threads"],
@@ -356,6 +341,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             "region-floor",
             "focus-share",
             "region-vote",
+            "frozen-stride",
         ],
         "demo" => &["out", "steps", "size", "seed", "threads"],
         "bench" => &["json", "reps", "log2t", "threads", "model", "data"],
@@ -374,7 +360,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
     }
     let threads = f.threads;
     if f.resume.is_some() {
-        const SETTINGS: [&str; 12] = [
+        const SETTINGS: [&str; 13] = [
             "steps",
             "rays",
             "log2t",
@@ -387,6 +373,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             "lr",
             "near-grad",
             "fixed-background",
+            "frozen-stride",
         ];
         if let Some(s) = f.given.iter().find(|g| SETTINGS.contains(&g.as_str())) {
             return Err(err(format!(
@@ -421,6 +408,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             region_floor: f.region_floor,
             focus_share: f.focus_share,
             region_vote: f.region_vote,
+            frozen_stride: f.frozen_stride,
         }),
         "render" => Command::Render {
             model: f.need_path("model", &command)?,
@@ -468,6 +456,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             region_floor: f.region_floor,
             focus_share: f.focus_share,
             region_vote: f.region_vote,
+            frozen_stride: f.frozen_stride,
         }),
         "demo" => Command::Demo { out: f.out.clone(), steps: f.steps, size: f.size, seed: f.seed, threads },
         _ => {
@@ -532,6 +521,7 @@ struct Flags {
     region_floor: Option<Option<f32>>,
     focus_share: Option<f32>,
     region_vote: Option<(f32, f32)>,
+    frozen_stride: Option<u32>,
     /// Flags given, in order.
     given: Vec<String>,
 }
@@ -586,6 +576,13 @@ impl Flags {
                 });
             }
             "focus-share" => self.focus_share = Some(finite(p, name, 0.0, 1.0)?),
+            "frozen-stride" => {
+                let n: u32 = positive(p, name)?;
+                if n > 64 {
+                    return Err(err(format!("--frozen-stride: {n} is outside 1..=64")));
+                }
+                self.frozen_stride = Some(n);
+            }
             "region-vote" => {
                 let s = text(p, name)?;
                 let v: Vec<Option<f32>> =
@@ -777,7 +774,7 @@ impl Flags {
         }
     }
 
-    fn depth(&self) -> Result<DepthChoice, CliError> {
+    fn depth(&self) -> Result<DepthMethod, CliError> {
         use crate::render::DensityThreshold;
         if self.m.is_some() && self.m_raw.is_some() {
             return Err(err("--m and --m-raw exclude each other (σ units or raw network output)"));
@@ -786,10 +783,10 @@ impl Flags {
             Some("expected") if self.m.is_some() || self.m_raw.is_some() => {
                 Err(err("--m / --m-raw apply to --depth threshold, not expected"))
             }
-            Some("expected") => Ok(DepthChoice::Expected),
-            _ => Ok(DepthChoice::Threshold(match self.m_raw {
+            Some("expected") => Ok(DepthMethod::Expected),
+            _ => Ok(DepthMethod::Threshold(match self.m_raw {
                 Some(s) => DensityThreshold::Raw(s),
-                None => DensityThreshold::Sigma(self.m.unwrap_or(DEFAULT_M)),
+                None => self.m.map_or(DensityThreshold::DEFAULT, DensityThreshold::Sigma),
             })),
         }
     }

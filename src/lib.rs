@@ -70,8 +70,10 @@ pub mod cli;
 pub mod compare;
 pub mod data;
 pub mod encoding;
+pub mod error;
 pub mod eval;
 pub mod field;
+pub mod geometry;
 pub mod io;
 pub mod memory;
 pub mod mlp;
@@ -79,6 +81,7 @@ pub mod onboard;
 pub mod render;
 pub mod rng;
 pub mod simd;
+pub mod slots;
 pub mod train;
 
 /// What a backward pass does with parameter gradients (tiny-cuda-nn's contract).

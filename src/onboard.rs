@@ -2,7 +2,8 @@
 //! colour and β — for any camera pose and intrinsics into the caller's buffers. After the
 //! first frame of a given size nothing is allocated per frame; the thread count is the
 //! caller's ([`DepthRenderer::with_threads`]); the depth convention is part of the request
-//! ([`DepthKind`]: z or range, metres, NaN holes).
+//! ([`DepthKind`]: z or range, metres, NaN holes). Errors carry an [`ErrorKind`] to act on
+//! (bad input, unsupported or corrupt model file, I/O) and a one-line message.
 //!
 //! ```no_run
 //! use residual_nerf::onboard::{DepthKind, DepthMethod, DepthRenderer, DepthRequest};
@@ -14,42 +15,19 @@
 //! let mut depth = vec![0.0f32; 640 * 480];
 //! let request = DepthRequest { method: DepthMethod::default(), kind: DepthKind::Z };
 //! cam.depth(&k, &pose, request, &mut depth)?; // metres along the viewing axis, NaN = hole
-//! # Ok::<(), String>(())
+//! # Ok::<(), residual_nerf::onboard::Error>(())
 //! ```
 
 use crate::field::residual::ResidualField;
 use crate::field::NerfField;
 use crate::io::{load_model, LoadedModel};
 use crate::render::view::Scene;
-use crate::render::{pixel_ray, Aabb, DensityThreshold, FullOutputs, Intrinsics, OccupancyGrid, Pose, ViewRenderer};
+use crate::render::{pixel_ray, Aabb, FullOutputs, Intrinsics, OccupancyGrid, Pose, ViewRenderer};
 use crate::simd::Isa;
 use std::path::Path;
 
-/// How depth is read off each ray.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum DepthMethod {
-    /// Dex-NeRF: the first sample whose density σ reaches the threshold (holes where none
-    /// does). The default, at σ ≥ [`crate::cli::DEFAULT_M`] per metre.
-    Threshold(DensityThreshold),
-    /// NeRF's expected depth `Σ w t` (paper Eq. 3); never a hole, blurred at glass.
-    Expected,
-}
-
-impl Default for DepthMethod {
-    fn default() -> Self {
-        DepthMethod::Threshold(DensityThreshold::Sigma(crate::cli::DEFAULT_M))
-    }
-}
-
-/// What a depth value measures. Both are metres (the dataset's unit); holes are NaN.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub enum DepthKind {
-    /// Distance along the camera's viewing axis (ROS depth images, Dex-Net, OpenCV).
-    #[default]
-    Z,
-    /// Distance along each pixel's ray from the camera centre (a lidar's range).
-    Range,
-}
+pub use crate::error::{Error, ErrorKind};
+pub use crate::render::{DensityThreshold, DepthKind, DepthMethod};
 
 /// A depth request: method and convention.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
@@ -92,7 +70,7 @@ pub struct DepthRenderer {
 
 impl DepthRenderer {
     /// Loads a model file (either kind); errors name the file.
-    pub fn load(path: &Path) -> Result<DepthRenderer, String> {
+    pub fn load(path: &Path) -> Result<DepthRenderer, Error> {
         Ok(DepthRenderer::new(load_model(path)?))
     }
 
@@ -124,9 +102,9 @@ impl DepthRenderer {
     /// cell (exact); larger values are faster and miss more: a cell's value is a sampled
     /// estimate, so a surface inside a cell can be denser than training saw. Measured on the
     /// dev models in BENCHMARKS.md ("Depth rendering on trained models"); the default is [`SOLID_FRACTION`].
-    pub fn solid_fraction(mut self, fraction: f32) -> Result<DepthRenderer, String> {
+    pub fn solid_fraction(mut self, fraction: f32) -> Result<DepthRenderer, Error> {
         if !(fraction.is_finite() && fraction >= 0.0) {
-            return Err(format!("solid fraction {fraction} is not a number >= 0"));
+            return Err(Error::bad_input(format!("solid fraction {fraction} is not a number >= 0")));
         }
         self.solid_fraction = fraction;
         Ok(self)
@@ -134,15 +112,15 @@ impl DepthRenderer {
 
     /// Renders on a pool of its own with `threads` threads (1 keeps all work on the calling
     /// thread's pool worker; results are the same bits for any count).
-    pub fn with_threads(mut self, threads: usize) -> Result<DepthRenderer, String> {
+    pub fn with_threads(mut self, threads: usize) -> Result<DepthRenderer, Error> {
         if threads == 0 {
-            return Err("threads: must be at least 1".into());
+            return Err(Error::bad_input("threads: must be at least 1"));
         }
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .thread_name(|i| format!("rnerf-render-{i}"))
             .build()
-            .map_err(|e| format!("threads: cannot start {threads} threads: {e}"))?;
+            .map_err(|e| Error::new(ErrorKind::Io, format!("threads: cannot start {threads} threads: {e}")))?;
         self.pool = Some(pool);
         Ok(self)
     }
@@ -169,7 +147,7 @@ impl DepthRenderer {
         pose: &Pose,
         request: DepthRequest,
         depth: &mut [f32],
-    ) -> Result<(), String> {
+    ) -> Result<(), Error> {
         self.render(k, pose, request, depth, Extras::default())
     }
 
@@ -181,11 +159,14 @@ impl DepthRenderer {
         request: DepthRequest,
         depth: &mut [f32],
         extras: Extras<'_>,
-    ) -> Result<(), String> {
+    ) -> Result<(), Error> {
         let n = k.width as usize * k.height as usize;
         let sized = |len: usize, what: &str| match len == n {
             true => Ok(()),
-            false => Err(format!("{what} buffer holds {len} values, the camera has {}x{} = {n}", k.width, k.height)),
+            false => Err(Error::bad_input(format!(
+                "{what} buffer holds {len} values, the camera has {}x{} = {n}",
+                k.width, k.height
+            ))),
         };
         sized(depth.len(), "depth")?;
         if let Some(rgb) = &extras.rgb {
@@ -195,10 +176,13 @@ impl DepthRenderer {
             sized(beta.len(), "beta")?;
         }
         if !(k.fx.is_finite() && k.fy.is_finite() && k.fx > 0.0 && k.fy > 0.0 && k.cx.is_finite() && k.cy.is_finite()) {
-            return Err(format!("intrinsics fx={} fy={} cx={} cy={} are not a camera", k.fx, k.fy, k.cx, k.cy));
+            return Err(Error::bad_input(format!(
+                "intrinsics fx={} fy={} cx={} cy={} are not a camera",
+                k.fx, k.fy, k.cx, k.cy
+            )));
         }
         if !(pose.translation.is_finite() && pose.rotation.is_finite()) {
-            return Err("pose holds a non-finite value".into());
+            return Err(Error::bad_input("pose holds a non-finite value"));
         }
         let (isa, background) = (self.isa, self.background);
         let depth_only = extras.rgb.is_none() && extras.beta.is_none();
@@ -250,7 +234,7 @@ impl DepthRenderer {
 /// One frame into the caller's buffers: the depth-only path when only threshold depth is
 /// asked for, the full one otherwise.
 #[allow(clippy::too_many_arguments)]
-fn draw<M: crate::train::model::Model>(
+fn draw<M: crate::field::model::Model>(
     isa: Isa,
     renderer: &mut ViewRenderer<M>,
     scene: &Scene<'_, M>,
@@ -275,14 +259,4 @@ fn draw<M: crate::train::model::Model>(
         beta: extras.beta.unwrap_or(&mut []),
     };
     renderer.full(isa, scene, k, pose, background, m, out);
-}
-
-impl DepthMethod {
-    /// The density threshold (for [`DepthMethod::Expected`], the default one).
-    fn threshold(self) -> DensityThreshold {
-        match self {
-            DepthMethod::Threshold(m) => m,
-            DepthMethod::Expected => DensityThreshold::Sigma(crate::cli::DEFAULT_M),
-        }
-    }
 }

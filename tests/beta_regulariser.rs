@@ -10,12 +10,12 @@ use proptest::prelude::*;
 use residual_nerf::encoding::HashGridConfig;
 use residual_nerf::field::mix::{DensityMix, MixKind};
 use residual_nerf::field::mixnet::MixnetEncoding;
+use residual_nerf::field::model::Model;
 use residual_nerf::field::residual::{ResidualConfig, ResidualField, ResidualParams};
 use residual_nerf::field::NerfConfig;
 use residual_nerf::render::Aabb;
 use residual_nerf::rng::Rng;
 use residual_nerf::train::beta::beta_terms;
-use residual_nerf::train::model::Model;
 
 /// The terms in f64 as functions of the logits m (β = sigmoid(m)); σ fixes the weights T_i δ_i.
 fn reference(sigma: &[f32], delta: &[f32], m: &[f64], u: f64, e: f64) -> f64 {

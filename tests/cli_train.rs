@@ -1,6 +1,7 @@
 //! `rnerf train` as a robot runs it: SIGINT finishes the step, writes a checkpoint and exits
 //! 130 without touching `--out`; `--resume` then ends with the same tensors as a run never
-//! interrupted, and removes the checkpoint. A checkpoint resumes only on its own data.
+//! interrupted (tensors and metadata), and removes the checkpoint. A checkpoint resumes only on
+//! its own data.
 
 use residual_nerf::app::checkpoint_path;
 use residual_nerf::data::{workspace, Dataset, LoadOptions};
@@ -37,6 +38,22 @@ fn tensors(path: &Path) -> Vec<(String, Vec<u8>)> {
     let st = SafeTensors::deserialize(&bytes).unwrap();
     let mut v: Vec<(String, Vec<u8>)> =
         st.tensors().into_iter().map(|(n, t)| (n.to_string(), t.data().to_vec())).collect();
+    v.sort();
+    v
+}
+
+/// A model file's metadata without the entries that differ between an uninterrupted and a
+/// resumed run by nature (training seconds, where it resumed from).
+fn run_metadata(path: &Path) -> Vec<(String, String)> {
+    let bytes = std::fs::read(path).unwrap();
+    let (_, meta) = SafeTensors::read_metadata(&bytes).unwrap();
+    let mut v: Vec<(String, String)> = meta
+        .metadata()
+        .clone()
+        .unwrap_or_default()
+        .into_iter()
+        .filter(|(k, _)| k != "train_seconds" && k != "train_resumed_from")
+        .collect();
     v.sort();
     v
 }
@@ -89,6 +106,16 @@ fn an_interrupted_run_resumes_to_the_same_model() {
         assert!(ta == tb, "tensor {na} differs between the resumed and the uninterrupted run");
     }
     assert!(!a.iter().any(|(n, _)| n.starts_with("train.")), "a finished model carries no training state");
+    let (ma, mb) = (run_metadata(&straight), run_metadata(&out));
+    assert!(ma.iter().any(|(k, _)| k == "train_lr") && ma.iter().any(|(k, _)| k == "train_random_background"));
+    assert_eq!(ma, mb, "the resumed model's metadata differs from the uninterrupted one's");
+    assert!(SafeTensors::read_metadata(&std::fs::read(&out).unwrap())
+        .unwrap()
+        .1
+        .metadata()
+        .as_ref()
+        .unwrap()
+        .contains_key("train_resumed_from"));
 }
 
 #[test]

@@ -12,13 +12,13 @@ use glam::Vec3;
 use residual_nerf::encoding::HashGridConfig;
 use residual_nerf::field::mix::{DensityMix, MixKind};
 use residual_nerf::field::mixnet::MixnetEncoding;
+use residual_nerf::field::model::Model;
 use residual_nerf::field::region::ChangeRegion;
 use residual_nerf::field::residual::{ResidualConfig, ResidualField};
 use residual_nerf::field::{Nerf, NerfConfig};
 use residual_nerf::render::Aabb;
 use residual_nerf::rng::Rng;
 use residual_nerf::simd::Isa;
-use residual_nerf::train::model::Model;
 
 fn grid() -> HashGridConfig {
     HashGridConfig { levels: 6, log2_table_size: 10, base_resolution: 4, finest_resolution: 64 }

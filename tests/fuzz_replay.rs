@@ -64,7 +64,7 @@ fn image_corpus_never_panics() {
 fn model_file_corpus_never_panics() {
     replay("model_file", |data| {
         if let Err(e) = residual_nerf::io::model_from_bytes(data) {
-            assert!(!e.contains('\n'), "error is not one line: {e}");
+            assert!(!e.message().contains('\n'), "error is not one line: {e}");
         }
         if let Err(e) = residual_nerf::io::checkpoint_from_bytes(data) {
             assert!(!e.contains('\n'), "error is not one line: {e}");

@@ -4,6 +4,7 @@
 
 use residual_nerf::data::synth;
 use residual_nerf::encoding::HashGridConfig;
+use residual_nerf::error::ErrorKind;
 use residual_nerf::field::{Nerf, NerfConfig};
 use residual_nerf::io::model::{ModelReader, ModelWriter};
 use residual_nerf::io::{load_nerf, nerf_from_bytes, save_nerf};
@@ -79,6 +80,8 @@ fn non_finite_weights_are_never_saved_and_never_loaded() {
     let path = dir.join("m.safetensors");
     nerf.params.grid.master[7] = f32::NAN;
     let e = save_nerf(&path, &nerf, &[]).unwrap_err();
+    assert_eq!(e.kind(), ErrorKind::BadInput);
+    let e = e.to_string();
     assert!(e.contains("grid.params") && e.contains("non-finite"), "{e}");
     assert!(!path.exists() && std::fs::read_dir(&dir).unwrap().next().is_none(), "nothing may be written");
     // A file holding a NaN (written by someone else) is refused on load.
@@ -87,7 +90,8 @@ fn non_finite_weights_are_never_saved_and_never_loaded() {
     let header_len = u64::from_le_bytes(good[..8].try_into().unwrap()) as usize;
     bad[8 + header_len..8 + header_len + 4].copy_from_slice(&f32::NAN.to_le_bytes());
     let e = nerf_from_bytes(&bad).unwrap_err();
-    assert!(e.contains("non-finite"), "{e}");
+    assert_eq!(e.kind(), ErrorKind::CorruptModel);
+    assert!(e.message().contains("non-finite"), "{e}");
 }
 
 #[test]
@@ -109,25 +113,35 @@ fn broken_model_files_are_refused_with_one_line_errors() {
     }
     let mut huge_header = good.clone();
     huge_header[..8].copy_from_slice(&u64::MAX.to_le_bytes());
-    let cases: Vec<(&str, Vec<u8>, &str)> = vec![
-        ("empty", Vec::new(), "truncated or empty"),
-        ("truncated", good[..good.len() / 2].to_vec(), "truncated"),
-        ("header only", good[..100].to_vec(), "not a model file"),
-        ("random", random, "not a model file"),
-        ("malicious header length", huge_header, "not a model file"),
-        ("other format", retag("residual-nerf-model", "residual-nerf-xxxxx"), "not a residual-nerf model"),
-        ("other version", retag("\"format_version\":\"1\"", "\"format_version\":\"9\""), "format version 9"),
+    use ErrorKind::{CorruptModel, Unsupported};
+    let cases: Vec<(&str, Vec<u8>, &str, ErrorKind)> = vec![
+        ("empty", Vec::new(), "truncated or empty", CorruptModel),
+        ("truncated", good[..good.len() / 2].to_vec(), "truncated", CorruptModel),
+        ("header only", good[..100].to_vec(), "not a model file", CorruptModel),
+        ("random", random, "not a model file", CorruptModel),
+        ("malicious header length", huge_header, "not a model file", CorruptModel),
+        ("other format", retag("residual-nerf-model", "residual-nerf-xxxxx"), "not a residual-nerf model", Unsupported),
+        (
+            "other version",
+            retag("\"format_version\":\"1\"", "\"format_version\":\"9\""),
+            "format version 9",
+            Unsupported,
+        ),
+        ("other kind", retag("\"kind\":\"nerf\"", "\"kind\":\"xxxx\""), "model kind 'xxxx'", Unsupported),
     ];
-    for (name, bytes, needle) in cases {
+    for (name, bytes, needle, kind) in cases {
         let e = match std::panic::catch_unwind(|| nerf_from_bytes(&bytes)) {
             Ok(r) => r.expect_err(name),
             Err(_) => panic!("{name}: the loader panicked"),
         };
+        assert_eq!(e.kind(), kind, "{name}: {e}");
+        let e = e.to_string();
         assert!(e.contains(needle), "{name}: '{e}' should contain '{needle}'");
         assert!(!e.contains('\n'), "{name}: not one line: {e}");
     }
     let e = load_nerf(Path::new("/nonexistent/m.safetensors")).unwrap_err();
-    assert!(e.contains("/nonexistent/m.safetensors"), "{e}");
+    assert_eq!(e.kind(), ErrorKind::Io);
+    assert!(e.message().contains("/nonexistent/m.safetensors"), "{e}");
 }
 
 #[test]
@@ -165,6 +179,7 @@ fn residual_model_round_trips_with_its_background_embedded() {
         assert_eq!(back.occupancy.values(), model.occupancy.values());
         // A residual file is not a plain NeRF.
         let e = load_nerf(&path).unwrap_err();
-        assert!(e.contains("residual"), "{e}");
+        assert_eq!(e.kind(), ErrorKind::Unsupported);
+        assert!(e.message().contains("residual"), "{e}");
     }
 }

@@ -5,6 +5,7 @@ mod common;
 use common::cases;
 use glam::Vec3;
 use proptest::prelude::*;
+use residual_nerf::field::region::ChangeRegion;
 use residual_nerf::render::{threshold_depth, Aabb, DensityThreshold, OccupancyConfig, OccupancyGrid, PackedSamples};
 use residual_nerf::rng::Rng;
 
@@ -183,5 +184,66 @@ proptest! {
         for (a, b) in out.t.iter().zip(&brute) {
             prop_assert!((a - b).abs() < 1e-4, "{} vs {}", a, b);
         }
+    }
+}
+
+/// Marches a whole ray with `march_segment` at `stride`, in segments of 7 samples (segments
+/// must concatenate to one march).
+fn march_strided(g: &OccupancyGrid, origin: Vec3, dir: Vec3, stride: u32) -> (Vec<f32>, Vec<f32>) {
+    let (mut t, mut delta) = (Vec::new(), Vec::new());
+    if let Some(span) = g.span(origin, dir) {
+        let mut next = 0;
+        while next < span.steps {
+            next = g.march_segment(origin, dir, span, next..span.steps, 7, stride, &mut t, &mut delta);
+        }
+    }
+    (t, delta)
+}
+
+proptest! {
+    #![proptest_config(cases(48))]
+
+    /// With a pinned region, `stride > 1` keeps the samples inside it and merges runs of up to
+    /// `stride` occupied steps outside it: the strided samples tile exactly the lattice steps
+    /// the fine march samples (each a run of consecutive fine steps, none of them pinned when
+    /// the run is longer than one), so `Σ δ` agrees, and a constant density gives the same
+    /// transmittance. Without pins the stride changes nothing.
+    #[test]
+    fn a_stride_outside_the_pinned_region_covers_the_same_steps(
+        oy in -0.3f32..0.3, oz in -0.3f32..0.3, dy in -0.2f32..0.2, dz in -0.2f32..0.2,
+        x0 in 0u32..32, w in 1u32..12, stride in 2u32..7,
+    ) {
+        let mut g = sphere_grid();
+        let origin = Vec3::new(-0.5, 0.5 + oy, 0.5 + oz);
+        let dir = Vec3::new(1.0, dy, dz).normalize();
+        prop_assert_eq!(march_strided(&g, origin, dir, stride), march_strided(&g, origin, dir, 1));
+        // Pin a slab of cells across the sphere (x in x0..x0 + w).
+        let r = 32u32;
+        let cells: Vec<u32> = (0..r * r * r).filter(|i| (x0..x0 + w).contains(&(i % r))).collect();
+        g.pin(&ChangeRegion::from_cells(unit_box(), r, &cells).unwrap());
+        let (fine_t, fine_d) = march_strided(&g, origin, dir, 1);
+        let (t, d) = march_strided(&g, origin, dir, stride);
+        let dt = g.step_size();
+        let pinned = |p: Vec3| (x0..x0 + w).contains(&((p.x * r as f32).floor().clamp(0.0, 31.0) as u32));
+        let mut f = 0;
+        for (&ts, &ds) in t.iter().zip(&d) {
+            let run = (ds / dt).round() as usize;
+            prop_assert!(run >= 1 && run <= stride as usize && (ds - run as f32 * dt).abs() < 1e-6 * run as f32);
+            prop_assert!(f + run <= fine_t.len(), "more steps than the fine march");
+            let (first, last) = (fine_t[f], fine_t[f + run - 1]);
+            prop_assert!((last - first - (run - 1) as f32 * dt).abs() < 1e-4, "a run skips a step");
+            prop_assert!((ts - 0.5 * (first + last)).abs() < 1e-4, "{} is not the run's middle", ts);
+            if run > 1 {
+                prop_assert!(fine_t[f..f + run].iter().all(|&m| !pinned(origin + m * dir)), "a run covers a pinned step");
+            } else if pinned(origin + first * dir) {
+                prop_assert_eq!(ts, first);
+            }
+            f += run;
+        }
+        prop_assert_eq!(f, fine_t.len());
+        let (sum, fine_sum) = (d.iter().sum::<f32>(), fine_d.iter().sum::<f32>());
+        prop_assert!((sum - fine_sum).abs() < 1e-4, "Σδ {} vs {}", sum, fine_sum);
+        let transmittance = |ds: &[f32]| ds.iter().map(|&x| (-7.0 * x).exp()).product::<f32>();
+        prop_assert!((transmittance(&d) - transmittance(&fine_d)).abs() < 1e-4);
     }
 }

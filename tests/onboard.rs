@@ -10,7 +10,7 @@ use residual_nerf::data::synth;
 use residual_nerf::field::Nerf;
 use residual_nerf::io::export::depth_ply_bytes;
 use residual_nerf::io::LoadedModel;
-use residual_nerf::onboard::{DepthKind, DepthMethod, DepthRenderer, DepthRequest, Extras};
+use residual_nerf::onboard::{DepthKind, DepthMethod, DepthRenderer, DepthRequest, Error, ErrorKind, Extras};
 use residual_nerf::render::{pixel_ray, DensityThreshold, Intrinsics, Pose, ViewRenderer};
 use residual_nerf::simd::Isa;
 
@@ -101,7 +101,7 @@ fn solid_fraction_zero_is_exact_and_bad_fractions_are_refused() {
     }
     for bad in [-0.1, f32::NAN, f32::INFINITY] {
         let e = new().solid_fraction(bad).err().expect("refused");
-        assert!(e.contains("solid fraction"), "{e}");
+        assert!(e.kind() == ErrorKind::BadInput && e.message().contains("solid fraction"), "{e}");
     }
 }
 
@@ -132,17 +132,23 @@ fn wrong_buffers_and_cameras_are_refused_without_a_panic() {
     let (k, pose) = cameras().remove(0);
     let n = (k.width * k.height) as usize;
     let req = DepthRequest::default();
-    let e = cam.depth(&k, &pose, req, &mut vec![0.0; n - 1]).unwrap_err();
-    assert!(e.contains("depth buffer") && e.contains("24x24"), "{e}");
+    // Each refusal is a bad input a caller can match on, with a one-line message.
+    let bad = |e: Error, needle: &str| {
+        assert_eq!(e.kind(), ErrorKind::BadInput, "{e}");
+        assert!(e.message().contains(needle) && !e.message().contains('\n'), "'{e}' should name {needle}");
+    };
+    bad(cam.depth(&k, &pose, req, &mut vec![0.0; n - 1]).unwrap_err(), "depth buffer");
+    assert!(cam.depth(&k, &pose, req, &mut vec![0.0; n - 1]).unwrap_err().message().contains("24x24"));
     let mut z = vec![0.0; n];
     let e = cam.render(&k, &pose, req, &mut z, Extras { rgb: Some(&mut [[0.0; 3]; 3]), beta: None }).unwrap_err();
-    assert!(e.contains("rgb buffer"), "{e}");
+    bad(e, "rgb buffer");
     let bad_k = Intrinsics { fx: 0.0, ..k };
-    assert!(cam.depth(&bad_k, &pose, req, &mut z).unwrap_err().contains("intrinsics"));
+    bad(cam.depth(&bad_k, &pose, req, &mut z).unwrap_err(), "intrinsics");
     let bad_pose = Pose { translation: Vec3::NAN, ..pose };
-    assert!(cam.depth(&k, &bad_pose, req, &mut z).unwrap_err().contains("pose"));
-    assert!(DepthRenderer::new(LoadedModel::Nerf(Box::new(trained()))).with_threads(0).is_err());
-    assert!(DepthRenderer::load("/nonexistent/m.safetensors".as_ref()).is_err());
+    bad(cam.depth(&k, &bad_pose, req, &mut z).unwrap_err(), "pose");
+    bad(DepthRenderer::new(LoadedModel::Nerf(Box::new(trained()))).with_threads(0).err().unwrap(), "threads");
+    let e = DepthRenderer::load("/nonexistent/m.safetensors".as_ref()).err().unwrap();
+    assert_eq!(e.kind(), ErrorKind::Io, "{e}");
 }
 
 #[test]

@@ -23,6 +23,7 @@ fn segmented_rendering_equals_whole_ray_compositing() {
     let mut cfg = TrainConfig::with_steps(60);
     cfg.rays_per_step = 512;
     cfg.background = synth::SKY;
+    cfg.random_background = false; // the sky shows where rays miss the scene
     cfg.occupancy = OccupancyConfig {
         resolution: 16,
         steps_per_diagonal: 128,

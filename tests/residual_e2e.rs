@@ -36,7 +36,7 @@ fn residual_nerf_beats_dex_nerf_in_the_glass_crop() {
     for (i, v) in test.views.iter().enumerate() {
         let crop = test.crops[i];
         let d = render_view(isa, &Scene::from(&dex), &v.intrinsics, &v.pose, SKY, m);
-        let r = render_view(isa, &residual.scene(), &v.intrinsics, &v.pose, SKY, m);
+        let r = render_view(isa, &Scene::from(&residual), &v.intrinsics, &v.pose, SKY, m);
         e_dex.add_frame(&d.threshold_z, &test.depth[i], size, crop, None);
         e_res.add_frame(&r.threshold_z, &test.depth[i], size, crop, None);
         for (p, &b) in r.beta.iter().enumerate() {

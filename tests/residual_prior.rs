@@ -11,12 +11,12 @@ use residual_nerf::data::workspace;
 use residual_nerf::encoding::HashGridConfig;
 use residual_nerf::field::mix::{DensityMix, MixKind};
 use residual_nerf::field::mixnet::MixnetEncoding;
+use residual_nerf::field::model::Model;
 use residual_nerf::field::region::ChangeRegion;
 use residual_nerf::field::residual::{ResidualConfig, ResidualContext, ResidualField, ResidualNetGrads};
 use residual_nerf::field::Nerf;
 use residual_nerf::render::{Aabb, DensityThreshold};
 use residual_nerf::rng::Rng;
-use residual_nerf::train::model::Model;
 use residual_nerf::train::prior::{change_map, scene_prior, PriorConfig};
 use residual_nerf::train::trainer::train_nerf;
 use residual_nerf::GradientMode;
@@ -266,9 +266,9 @@ fn the_lift_raises_the_residual_to_the_floor_inside_the_region() {
 /// pixels (each within two pixels of one), and a surface in front of the region hides it.
 #[test]
 fn reach_pixels_are_the_rays_that_cross_the_region() {
-    use residual_nerf::render::camera::{pixel_ray, Intrinsics, Pose};
+    use residual_nerf::data::View;
+    use residual_nerf::geometry::camera::{pixel_ray, Intrinsics, Pose};
     use residual_nerf::train::prior::reach_pixels;
-    use residual_nerf::train::trainer::View;
     let res = 16;
     let cells: Vec<u32> =
         [(7, 8, 8), (8, 8, 8), (8, 9, 8), (3, 4, 10)].iter().map(|&(x, y, z)| x + res * (y + res * z)).collect();

@@ -5,19 +5,18 @@
 
 use glam::Vec3;
 use residual_nerf::data::workspace;
+use residual_nerf::data::View;
 use residual_nerf::encoding::HashGridConfig;
 use residual_nerf::field::mix::{DensityMix, MixKind};
 use residual_nerf::field::mixnet::MixnetEncoding;
+use residual_nerf::field::model::Model;
 use residual_nerf::field::residual::{ResidualConfig, ResidualField};
 use residual_nerf::field::{Nerf, NerfConfig, NerfField};
 use residual_nerf::io::{load_checkpoint, save_checkpoint, save_nerf, views_fingerprint, LoadedModel, ModelFile};
 use residual_nerf::render::{Aabb, OccupancyConfig, OccupancyGrid};
 use residual_nerf::rng::Rng;
 use residual_nerf::simd::Isa;
-use residual_nerf::train::model::Model;
-use residual_nerf::train::trainer::{
-    Focus, TrainConfig, TrainError, TrainState, Trainer, View, MAX_BAD_STEPS_IN_A_ROW,
-};
+use residual_nerf::train::trainer::{Focus, TrainConfig, TrainError, TrainState, Trainer, MAX_BAD_STEPS_IN_A_ROW};
 use std::path::{Path, PathBuf};
 
 fn scratch(name: &str) -> PathBuf {

@@ -5,13 +5,14 @@ use super::train::{adopt_background_box, load_background, trainer_settings};
 use super::Progress;
 use crate::compare::{self, CompareConfig, EvalSet, Method, SceneResult};
 use crate::data::workspace::{self, SKY};
+use crate::data::View;
 use crate::data::{Dataset, FrameType, LoadOptions};
 use crate::encoding::HashGridConfig;
 use crate::field::{Nerf, NerfConfig};
 use crate::io::{export, save_nerf, write_atomic};
 use crate::render::{Aabb, DensityThreshold, OccupancyConfig};
 use crate::simd::Isa;
-use crate::train::trainer::{train_nerf, StepStats, TrainConfig, View};
+use crate::train::trainer::{train_nerf, StepStats, TrainConfig};
 use serde_json::json;
 use std::path::Path;
 
@@ -95,7 +96,8 @@ pub(super) fn run(a: &crate::cli::CompareArgs) -> Result<(), String> {
         scenes.push(SceneData { name, train: views, test });
     }
     std::fs::create_dir_all(&a.out).map_err(|e| format!("{}: --out: cannot create: {e}", a.out.display()))?;
-    let (grid, train) = trainer_settings(a.steps, a.rays, a.log2t, a.seed, any_alpha);
+    let (grid, mut train) = trainer_settings(a.steps, a.rays, a.log2t, a.seed, any_alpha);
+    train.frozen_stride = a.frozen_stride.unwrap_or(train.frozen_stride);
     let cfg = CompareConfig {
         eval_every: a.eval_every.unwrap_or((train.steps / 20).max(1)),
         train,
@@ -271,7 +273,7 @@ pub fn demo_config(steps: u32, seed: u64) -> CompareConfig {
             aabb: workspace::aabb(),
         },
         mixnet_grid: crate::field::mixnet::default_mixnet_grid(),
-        m: DensityThreshold::Sigma(crate::cli::DEFAULT_M),
+        m: DensityThreshold::DEFAULT,
         eval_every: (steps / 20).max(1),
         m_sweep: Vec::new(),
         prior: Default::default(),

@@ -1,14 +1,14 @@
 //! `rnerf eval`: a model against a split's images and ground-truth depth (DESIGN §2.6).
 
 use super::Progress;
-use crate::cli::DepthChoice;
 use crate::data::{Dataset, LoadOptions};
 use crate::eval::{crop_box, mse, psnr, CropRule, DepthErrors, DepthReport, NEAR_LIMIT};
+use crate::field::model::Model;
 use crate::io::{load_model, LoadedModel};
 use crate::render::view::Scene;
+use crate::render::DepthMethod;
 use crate::render::{FullOutputs, ViewRenderer};
 use crate::simd::Isa;
-use crate::train::model::Model;
 use serde_json::json;
 use std::path::Path;
 
@@ -30,12 +30,12 @@ pub struct EvalReport {
 
 impl EvalReport {
     /// The `--json` object.
-    pub fn to_json(&self, depth: DepthChoice) -> serde_json::Value {
+    pub fn to_json(&self, depth: DepthMethod) -> serde_json::Value {
         let num = |x: f64| if x.is_finite() { json!(x) } else { json!(null) };
         let method = match depth {
-            DepthChoice::Expected => "expected".to_string(),
-            DepthChoice::Threshold(crate::render::DensityThreshold::Sigma(m)) => format!("threshold sigma>={m}"),
-            DepthChoice::Threshold(crate::render::DensityThreshold::Raw(s)) => format!("threshold raw>={s}"),
+            DepthMethod::Expected => "expected".to_string(),
+            DepthMethod::Threshold(crate::render::DensityThreshold::Sigma(m)) => format!("threshold sigma>={m}"),
+            DepthMethod::Threshold(crate::render::DensityThreshold::Raw(s)) => format!("threshold raw>={s}"),
         };
         json!({
             "mae": num(self.depth.mae()), "rmse": num(self.depth.rmse()), "hole_rate": num(self.depth.hole_rate()),
@@ -51,7 +51,7 @@ pub fn evaluate<M: Model>(
     isa: Isa,
     scene: &Scene<'_, M>,
     data: &Dataset,
-    depth: DepthChoice,
+    depth: DepthMethod,
     crop: CropRule,
     limit: Option<f32>,
     background: [f32; 3],
@@ -73,7 +73,7 @@ pub fn evaluate<M: Model>(
         renderer.full(isa, scene, k, &v.pose, background, m, out);
         psnr_sum += psnr(mse(&rgb, &v.rgb));
         if let Some(gt) = &f.depth {
-            let pred = if depth == DepthChoice::Expected { &expected } else { &threshold };
+            let pred = if depth == DepthMethod::Expected { &expected } else { &threshold };
             errors.add_frame(pred, gt, k.width, crop_box(crop, k.width, k.height, f.crop), limit);
             let frame_crop = crop_box(CropRule::Frame, k.width, k.height, f.crop);
             regions.add_frame(pred, gt, f.mask.as_deref(), k.width, frame_crop, limit.unwrap_or(NEAR_LIMIT));
@@ -94,7 +94,7 @@ pub(super) fn run(
     model: &Path,
     data_dir: &Path,
     split: &str,
-    depth: DepthChoice,
+    depth: DepthMethod,
     crop: CropRule,
     limit: Option<f32>,
     json: bool,
@@ -107,7 +107,7 @@ pub(super) fn run(
     let isa = Isa::detect();
     let report = match &model {
         LoadedModel::Nerf(n) => evaluate(isa, &Scene::from(&**n), &data, depth, crop, limit, opts.background, tick),
-        LoadedModel::Residual(r) => evaluate(isa, &r.scene(), &data, depth, crop, limit, opts.background, tick),
+        LoadedModel::Residual(r) => evaluate(isa, &Scene::from(&**r), &data, depth, crop, limit, opts.background, tick),
     };
     if json {
         println!("{}", report.to_json(depth));

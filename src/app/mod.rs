@@ -11,7 +11,7 @@ mod train;
 pub use compare::{compare_and_write, demo_config, train_background, SceneData, DEMO};
 pub use eval::{evaluate, EvalReport};
 pub use progress::Progress;
-pub use train::{checkpoint_path, default_train_config, TRAIN_RAYS, TRAIN_STEPS};
+pub use train::checkpoint_path;
 
 use crate::bench::{self, BenchOptions};
 use crate::cli::Command;
@@ -42,6 +42,12 @@ pub struct Failure {
 impl From<String> for Failure {
     fn from(message: String) -> Failure {
         Failure { message, code: 1 }
+    }
+}
+
+impl From<crate::error::Error> for Failure {
+    fn from(e: crate::error::Error) -> Failure {
+        Failure { message: e.into(), code: 1 }
     }
 }
 

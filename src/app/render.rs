@@ -3,16 +3,16 @@
 //! folder.
 
 use super::Progress;
-use crate::cli::DepthChoice;
 use crate::data::{Dataset, LoadOptions};
+use crate::field::model::Model;
 use crate::io::{export, load_model, LoadedModel};
 use crate::render::view::Scene;
+use crate::render::DepthMethod;
 use crate::render::{FullOutputs, ViewRenderer};
 use crate::simd::Isa;
-use crate::train::model::Model;
 use std::path::Path;
 
-pub(super) fn run(model: &Path, data_dir: &Path, split: &str, depth: DepthChoice, out: &Path) -> Result<(), String> {
+pub(super) fn run(model: &Path, data_dir: &Path, split: &str, depth: DepthMethod, out: &Path) -> Result<(), String> {
     if out.exists() && !out.is_dir() {
         return Err(format!("{}: --out: not a directory", out.display()));
     }
@@ -23,7 +23,7 @@ pub(super) fn run(model: &Path, data_dir: &Path, split: &str, depth: DepthChoice
     std::fs::create_dir_all(out).map_err(|e| format!("{}: --out: cannot create: {e}", out.display()))?;
     match &model {
         LoadedModel::Nerf(n) => render_all(&Scene::from(&**n), &data, depth, out, opts.background, false),
-        LoadedModel::Residual(r) => render_all(&r.scene(), &data, depth, out, opts.background, true),
+        LoadedModel::Residual(r) => render_all(&Scene::from(&**r), &data, depth, out, opts.background, true),
     }
 }
 
@@ -31,7 +31,7 @@ pub(super) fn run(model: &Path, data_dir: &Path, split: &str, depth: DepthChoice
 fn render_all<M: Model>(
     scene: &Scene<'_, M>,
     data: &Dataset,
-    depth: DepthChoice,
+    depth: DepthMethod,
     out: &Path,
     background: [f32; 3],
     beta: bool,
@@ -48,7 +48,7 @@ fn render_all<M: Model>(
         let outputs =
             FullOutputs { rgb: &mut rgb, expected_z: &mut expected, threshold_z: &mut threshold, beta: &mut b };
         renderer.full(isa, scene, k, &v.pose, background, m, outputs);
-        let z = if depth == DepthChoice::Expected { &expected } else { &threshold };
+        let z = if depth == DepthMethod::Expected { &expected } else { &threshold };
         let stem =
             f.image_path.file_stem().map_or_else(|| format!("frame_{}", f.index), |s| s.to_string_lossy().into_owned());
         let (w, h) = (k.width, k.height);

@@ -21,23 +21,8 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Arc;
 
-/// Default training steps: with [`TRAIN_RAYS`], about 6.5 minutes for 100 views of 200×200 on
-/// this project's 2-core machine (see docs/DECISIONS.md, "The engine").
-pub const TRAIN_STEPS: u32 = 1000;
-/// Default rays per step (fixed per-step costs — Adam over the 16 M grid parameters — are
-/// small beside 1024 rays, and more, smaller steps learn faster per second than 4096-ray ones
-/// here; measured in docs/DECISIONS.md).
-pub const TRAIN_RAYS: usize = 1024;
-
-/// The trainer settings `rnerf train` uses for `steps` steps (its defaults, documented in
-/// docs/DECISIONS.md): [`TRAIN_RAYS`] rays per step, Adam at 1e-2 with step decay from 60% of the steps,
-/// occupancy every 16 steps (all cells for the first 256).
-pub fn default_train_config(steps: u32) -> TrainConfig {
-    TrainConfig { rays_per_step: TRAIN_RAYS, ..TrainConfig::with_steps(steps) }
-}
-
 /// The grid and trainer settings of `rnerf train` and `rnerf compare`: the defaults
-/// ([`default_train_config`], log2T = 17) with the command line's steps, rays, table size and
+/// ([`TrainConfig::default`], log2T = 17) with the command line's steps, rays, table size and
 /// seed; images without alpha (every pixel shows a surface) train over random background
 /// colours, others over white (what their alpha was composited over).
 pub(super) fn trainer_settings(
@@ -51,10 +36,9 @@ pub(super) fn trainer_settings(
         log2_table_size: log2t.unwrap_or(HashGridConfig::default().log2_table_size),
         ..Default::default()
     };
-    let mut cfg = default_train_config(steps.unwrap_or(TRAIN_STEPS));
+    let mut cfg = steps.map_or_else(TrainConfig::default, TrainConfig::with_steps);
     cfg.rays_per_step = rays.unwrap_or(cfg.rays_per_step);
     cfg.seed = seed.unwrap_or(cfg.seed);
-    cfg.background = LoadOptions::default().background;
     cfg.random_background = !had_alpha;
     (grid, cfg)
 }
@@ -149,18 +133,8 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
     cfg.schedule.base = a.lr.unwrap_or(cfg.schedule.base);
     cfg.near_gradient_distance = a.near_grad.unwrap_or(cfg.near_gradient_distance);
     cfg.random_background &= a.random_bg.unwrap_or(true);
+    cfg.frozen_stride = a.frozen_stride.unwrap_or(cfg.frozen_stride);
     let isa = Isa::detect();
-    let mut extra = vec![
-        ("train_steps", cfg.steps.to_string()),
-        ("train_rays_per_step", cfg.rays_per_step.to_string()),
-        ("train_seed", cfg.seed.to_string()),
-        ("train_distortion", cfg.distortion.to_string()),
-        ("train_lr", cfg.schedule.base.to_string()),
-        ("train_random_background", cfg.random_background.to_string()),
-        ("train_near_gradient_distance", cfg.near_gradient_distance.to_string()),
-        ("train_data", a.data.display().to_string()),
-        ("train_split", a.split.clone()),
-    ];
     describe_run(&cfg, field.grid.log2_table_size, isa);
     match (background, &a.background) {
         (Some(bg), Some(bg_path)) => {
@@ -174,8 +148,6 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
                 "rnerf train: residual model over {} ({kind:?}, Mixnet encoding {mixnet:?}, background hints {hints:?})",
                 bg_path.display()
             );
-            extra.push(("background_file", bg_path.display().to_string()));
-            extra.push(("train_prior", format!("{hints:?}")));
             let pcfg = crate::app::compare::prior_config(a.beta, a.region_floor, a.focus_share, a.region_vote);
             let prior = (hints != Prior::NONE).then(|| {
                 let bg_views = match &a.background_data {
@@ -185,7 +157,7 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
                     }
                     None => Ok(Vec::new()),
                 }?;
-                let m = crate::render::DensityThreshold::Sigma(crate::cli::DEFAULT_M);
+                let m = crate::render::DensityThreshold::DEFAULT;
                 let p = scene_prior(isa, &bg, &bg_views, &data.views, cfg.background, m, &pcfg);
                 eprintln!(
                     "rnerf train: background prior: {:.1}% of the pixels changed ({}/{} views against background \
@@ -207,15 +179,51 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
                 eprintln!("rnerf train: {l}");
             }
             let model = start.field;
+            let residual = ResidualRun { background_file: bg_path.display().to_string(), prior: format!("{hints:?}") };
+            let extra = run_metadata(&cfg, a, Some(&residual));
             let trainer = Trainer::starting_at(isa, &model, &data.views, &cfg, start.params, start.occupancy);
             drive(a, &model, trainer, &extra)
         }
         _ => {
             let model = NerfField::new(field);
+            let extra = run_metadata(&cfg, a, None);
             let trainer = Trainer::new(isa, &model, data.aabb, &data.views, &cfg);
             drive(a, &model, trainer, &extra)
         }
     }
+}
+
+/// What a residual run adds to its model file's metadata (a checkpoint carries it to the resumed run).
+struct ResidualRun {
+    background_file: String,
+    prior: String,
+}
+
+/// Metadata keys of [`ResidualRun`].
+const BACKGROUND_FILE: &str = "background_file";
+const TRAIN_PRIOR: &str = "train_prior";
+
+/// The metadata of a model file `rnerf train` writes (and of its checkpoints): the run's
+/// settings, data and, for a residual model, its background and hints. One builder for fresh
+/// and resumed runs, so a resumed model carries what an uninterrupted one does.
+fn run_metadata(cfg: &TrainConfig, a: &TrainArgs, residual: Option<&ResidualRun>) -> Vec<(&'static str, String)> {
+    let mut m = vec![
+        ("train_steps", cfg.steps.to_string()),
+        ("train_rays_per_step", cfg.rays_per_step.to_string()),
+        ("train_seed", cfg.seed.to_string()),
+        ("train_distortion", cfg.distortion.to_string()),
+        ("train_lr", cfg.schedule.base.to_string()),
+        ("train_random_background", cfg.random_background.to_string()),
+        ("train_near_gradient_distance", cfg.near_gradient_distance.to_string()),
+        ("train_frozen_stride", cfg.frozen_stride.to_string()),
+        ("train_data", a.data.display().to_string()),
+        ("train_split", a.split.clone()),
+    ];
+    if let Some(r) = residual {
+        m.push((BACKGROUND_FILE, r.background_file.clone()));
+        m.push((TRAIN_PRIOR, r.prior.clone()));
+    }
+    m
 }
 
 fn describe_run(cfg: &TrainConfig, log2t: u32, isa: Isa) {
@@ -250,15 +258,13 @@ fn resume(a: &TrainArgs, path: &Path) -> Result<(), Failure> {
         .into());
     }
     let isa = Isa::detect();
-    let extra = vec![
-        ("train_steps", checkpoint.config.steps.to_string()),
-        ("train_rays_per_step", checkpoint.config.rays_per_step.to_string()),
-        ("train_seed", checkpoint.config.seed.to_string()),
-        ("train_data", a.data.display().to_string()),
-        ("train_split", a.split.clone()),
-        ("train_resumed_from", format!("{} at step {}", path.display(), checkpoint.step)),
-    ];
     let cfg = checkpoint.config.clone();
+    let residual = match (checkpoint.metadata.get(BACKGROUND_FILE), checkpoint.metadata.get(TRAIN_PRIOR)) {
+        (Some(b), Some(p)) => Some(ResidualRun { background_file: b.clone(), prior: p.clone() }),
+        _ => None,
+    };
+    let mut extra = run_metadata(&cfg, a, residual.as_ref());
+    extra.push(("train_resumed_from", format!("{} at step {}", path.display(), checkpoint.step)));
     eprintln!("rnerf train: resuming {} at step {} of {}", path.display(), checkpoint.step, cfg.steps);
     let at = |e: String| format!("--resume: {}: {e}", path.display());
     match model {

@@ -20,7 +20,7 @@ use crate::field::NerfConfig;
 use crate::io::LoadedModel;
 use crate::mlp::{Activation, Mlp, MlpConfig, MlpContext, MlpParams, MlpWorkspace};
 use crate::onboard::{DepthKind, DepthMethod, DepthRenderer, DepthRequest};
-use crate::render::{DensityThreshold, Intrinsics, Pose};
+use crate::render::{Intrinsics, Pose};
 use crate::rng::Rng;
 use crate::simd::Isa;
 use crate::train::trainer::{train_nerf, train_residual, StepStats, TrainConfig};
@@ -455,9 +455,7 @@ pub fn run(opts: &BenchOptions, trained: Vec<TrainedView>) -> BenchReport {
         grid: HashGridConfig { log2_table_size: opts.log2_table_size, ..Default::default() },
         aabb: scene.aabb,
     };
-    let mut cfg = TrainConfig::with_steps(scaled(120.0).max(8) as u32);
-    cfg.rays_per_step = crate::app::TRAIN_RAYS;
-    cfg.random_background = true;
+    let cfg = TrainConfig::with_steps(scaled(120.0).max(8) as u32);
     let rates = |log: &[StepStats]| -> (Vec<f64>, Vec<f64>) {
         let w: Vec<&[StepStats]> = log[log.len() * 3 / 4..].windows(2).collect();
         let dt = |w: &[StepStats]| w[1].seconds - w[0].seconds;
@@ -493,10 +491,7 @@ pub fn run(opts: &BenchOptions, trained: Vec<TrainedView>) -> BenchReport {
     let k = Intrinsics::from_fov_x(200, 200, 50f32.to_radians());
     let pose = scene.views[0].pose;
     // The robot's library call: `DepthRenderer` with its defaults (thinned grid), on this pool.
-    let request = DepthRequest {
-        method: DepthMethod::Threshold(DensityThreshold::Sigma(crate::cli::DEFAULT_M)),
-        kind: DepthKind::Z,
-    };
+    let request = DepthRequest { method: DepthMethod::default(), kind: DepthKind::Z };
     let mut subjects = vec![
         TrainedView { model: LoadedModel::Nerf(Box::new(nerf.clone())), intrinsics: k, pose },
         TrainedView { model: LoadedModel::Residual(Box::new(residual)), intrinsics: k, pose },
@@ -521,7 +516,7 @@ pub fn run(opts: &BenchOptions, trained: Vec<TrainedView>) -> BenchReport {
     for (name, step) in [("occupancy_update_ms_warmup", 0), ("occupancy_update_ms", u32::MAX)] {
         let v = time_reps(reps, || {
             occ.update(step, &mut orng, |p, sigma| {
-                crate::train::model::Model::density(&nerf.field, isa, &nerf.params, p, sigma, &mut ctx)
+                crate::field::model::Model::density(&nerf.field, isa, &nerf.params, p, sigma, &mut ctx)
             })
         });
         push(name, "ms", v.iter().map(|s| s * 1e3).collect());

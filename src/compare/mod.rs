@@ -17,20 +17,21 @@ pub mod figures;
 
 use crate::data::synth::SynthScene;
 use crate::data::Dataset;
+use crate::data::View;
 use crate::encoding::HashGridConfig;
 use crate::eval::{mse, psnr, DepthReport, NEAR_LIMIT};
 use crate::field::mix::{DensityMix, MixKind};
 use crate::field::mixnet::MixnetEncoding;
+use crate::field::model::Model;
 use crate::field::residual::ResidualConfig;
 use crate::field::{Nerf, NerfConfig, NerfField};
 use crate::io::{save_model, ModelFile};
 use crate::render::view::{RenderedView, Scene};
 use crate::render::{DensityThreshold, Intrinsics, OccupancyGrid, ViewRenderer};
 use crate::simd::Isa;
-use crate::train::model::Model;
 pub use crate::train::prior::Prior;
 use crate::train::prior::{residual_start, scene_prior, PriorConfig, ScenePrior};
-use crate::train::trainer::{train_model_from, StepStats, TrainConfig, TrainError, View};
+use crate::train::trainer::{train_model_from, StepStats, TrainConfig, TrainError};
 use std::fmt::Write as _;
 
 /// Test views with ground truth: z-depth per pixel (metres, NaN where unknown) and the scoring

@@ -5,9 +5,9 @@
 use super::error::{DataError, DataReport};
 use super::images::{decode_depth_exr, decode_mask, decode_rgb, dimensions};
 use super::transforms::{parse_transforms, DepthKind, FrameSpec, FrameType, Transforms};
+use crate::data::View;
+use crate::geometry::{pixel_ray, Aabb, Intrinsics};
 use crate::io::read_limited;
-use crate::render::{pixel_ray, Aabb, Intrinsics};
-use crate::train::trainer::View;
 use glam::Vec3;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};

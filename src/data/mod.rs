@@ -3,7 +3,7 @@
 //!
 //! - [`transforms`]: the json (pure parsing, every problem collected).
 //! - [`images`]: PNG/JPEG colour, mask PNGs, depth EXRs (size checked before decoding).
-//! - [`dataset`]: a split → posed [`crate::train::trainer::View`]s plus ground truth.
+//! - [`dataset`]: a split → posed [`View`]s plus ground truth.
 //! - [`error`]: errors naming the file, frame and field.
 //! - [`workspace`]: the synthetic robot workspace with a glass object (background and scene sets).
 
@@ -12,11 +12,13 @@ pub mod error;
 pub mod images;
 pub mod synth;
 pub mod transforms;
+pub mod view;
 pub mod workspace;
 
 pub use dataset::{aabb_from_cameras, AabbSource, Dataset, FrameInfo, LoadOptions};
 pub use error::{DataError, DataReport};
 pub use transforms::{DepthKind, FrameType};
+pub use view::View;
 
 /// `n` evenly spaced items of `items` (indices `⌊i · len / n⌋`; all of them when `n ≥ len`): the
 /// views a robot in a hurry takes (`--scene-views`).

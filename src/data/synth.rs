@@ -4,8 +4,8 @@
 //! around and above it; exact z-depth ground truth per pixel. [`SynthScene`] is shared with the
 //! robot workspace of [`super::workspace`] and writes any of them in the dataset layout.
 
-use crate::render::{pixel_ray, Aabb, Intrinsics, Pose, Ray};
-use crate::train::trainer::View;
+use crate::data::View;
+use crate::geometry::{pixel_ray, Aabb, Intrinsics, Pose, Ray};
 use glam::Vec3;
 
 /// Half-size of the room (metres): the room is `[−1, 1]³`.

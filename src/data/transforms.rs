@@ -9,7 +9,7 @@
 //! overrides the top level.
 
 use super::error::DataError;
-use crate::render::{Aabb, Pose};
+use crate::geometry::{Aabb, Pose};
 use glam::{Mat3, Vec3};
 use serde_json::{Map, Value};
 use std::path::{Path, PathBuf};
@@ -19,24 +19,7 @@ pub const MAX_TRANSLATION: f32 = 1e6;
 /// Largest accepted image side (pixels), for `w`/`h` here and for image headers.
 pub const MAX_SIDE: u32 = 16384;
 
-/// What a depth file's values measure.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum DepthKind {
-    /// Distance along the camera's viewing axis (what depth cameras report).
-    Z,
-    /// Distance along the pixel's ray.
-    Range,
-}
-
-impl DepthKind {
-    /// The name used in json files and reports (`"z"`, `"range"`).
-    pub fn name(self) -> &'static str {
-        match self {
-            DepthKind::Z => "z",
-            DepthKind::Range => "range",
-        }
-    }
-}
+pub use crate::geometry::DepthKind;
 
 /// The authors' per-frame role (`"type"`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -12,9 +12,9 @@
 //! by 10% of its larger side (the full image when there is no glass), as in `shared/data/dev`.
 
 use super::synth::SynthScene;
-use crate::render::Pose;
-use crate::render::{pixel_ray, Aabb, Intrinsics, Ray};
-use crate::train::trainer::View;
+use crate::data::View;
+use crate::geometry::Pose;
+use crate::geometry::{pixel_ray, Aabb, Intrinsics, Ray};
 use glam::Vec3;
 use rayon::prelude::*;
 

@@ -7,11 +7,11 @@
 //! on the pool, MLP per fixed slot, gradients reduced in slot order.
 
 use crate::encoding::{HashGrid, HashGridConfig, HashGridParams};
+use crate::geometry::Aabb;
 use crate::mlp::{Activation, Mlp, MlpConfig, MlpContext, MlpParams, MlpWorkspace};
-use crate::render::Aabb;
 use crate::rng::Rng;
 use crate::simd::Isa;
-use crate::train::slots::{accumulate_in_order, slot_range, split_rows, SLOTS};
+use crate::slots::{accumulate_in_order, slot_range, split_rows, SLOTS};
 use crate::GradientMode;
 use glam::Vec3;
 use rayon::prelude::*;

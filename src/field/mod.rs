@@ -10,15 +10,16 @@
 
 pub mod mix;
 pub mod mixnet;
+pub mod model;
 pub mod region;
 pub mod residual;
 
 use crate::encoding::{sh4, HashGrid, HashGridConfig, HashGridParams, SH4_COEFFS};
+use crate::geometry::Aabb;
 use crate::mlp::{Activation, Mlp, MlpConfig, MlpContext, MlpParams, MlpWorkspace};
-use crate::render::Aabb;
 use crate::rng::Rng;
 use crate::simd::Isa;
-use crate::train::slots::{accumulate_in_order, slot_range, split_rows, SLOTS};
+use crate::slots::{accumulate_in_order, slot_range, split_rows, SLOTS};
 use crate::GradientMode;
 use glam::Vec3;
 use rayon::prelude::*;

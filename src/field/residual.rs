@@ -67,13 +67,6 @@ pub struct ResidualModel {
     pub occupancy: crate::render::OccupancyGrid,
 }
 
-impl ResidualModel {
-    /// The model as a renderable scene.
-    pub fn scene(&self) -> crate::render::view::Scene<'_, ResidualField> {
-        crate::render::view::Scene { model: &self.field, params: &self.params, occupancy: &self.occupancy }
-    }
-}
-
 /// What a residual forward saves.
 #[derive(Clone, Debug, Default)]
 pub struct ResidualContext {

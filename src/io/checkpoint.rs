@@ -11,9 +11,10 @@
 
 use super::model::{read_model_bytes, ModelFile, ModelReader};
 use super::{model_from_bytes, LoadedModel};
+use crate::data::View;
+use crate::field::model::Model;
 use crate::render::{OccupancyConfig, OccupancyGrid};
-use crate::train::model::Model;
-use crate::train::trainer::{TrainConfig, TrainState, View};
+use crate::train::trainer::{TrainConfig, TrainState};
 use crate::train::{Adam, AdamConfig, LrSchedule};
 use serde_json::{json, Value};
 use std::path::Path;
@@ -31,6 +32,8 @@ pub struct Checkpoint {
     pub config: TrainConfig,
     /// [`views_fingerprint`] of the training views.
     pub fingerprint: u64,
+    /// The checkpoint file's metadata (the run's informational entries among them).
+    pub metadata: std::collections::HashMap<String, String>,
     /// Adam's first and second moments and step count per parameter group.
     pub moments: Vec<(Vec<f32>, Vec<f32>, u32)>,
 }
@@ -212,7 +215,7 @@ fn read_checkpoint(r: &ModelReader, occupancy: OccupancyConfig) -> Result<Checkp
         }
         moments.push((m, v, t));
     }
-    Ok(Checkpoint { step, skipped, seconds, config, fingerprint, moments })
+    Ok(Checkpoint { step, skipped, seconds, config, fingerprint, moments, metadata: r.metadata().clone() })
 }
 
 /// A one-dimensional f32 tensor of any length.
@@ -237,6 +240,7 @@ pub fn train_config_json(c: &TrainConfig) -> Value {
         "background": c.background, "random_background": c.random_background,
         "seed": c.seed, "distortion": c.distortion, "near_gradient_distance": c.near_gradient_distance,
         "beta_unchanged": c.beta.unchanged, "beta_entropy": c.beta.entropy, "beta_entropy_from": c.beta.entropy_from,
+        "frozen_stride": c.frozen_stride,
     })
 }
 
@@ -292,6 +296,11 @@ pub fn parse_train_config(v: &Value, occupancy: OccupancyConfig) -> Result<Train
             unchanged: optional(v, "beta_unchanged", 1e6)?,
             entropy: optional(v, "beta_entropy", 1e6)?,
             entropy_from: optional(v, "beta_entropy_from", 1.0)?,
+        },
+        // Added after the first checkpoints: absent means every step (how they were trained).
+        frozen_stride: match v.get("frozen_stride") {
+            None => 1,
+            Some(_) => uint(v, "frozen_stride", 1, 64)? as u32,
         },
     })
 }

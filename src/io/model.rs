@@ -17,14 +17,15 @@
 
 use super::atomic::write_atomic;
 use crate::encoding::{HashGridConfig, HashGridParams};
+use crate::error::{Error, ErrorKind};
 use crate::field::mix::{DensityMix, MixKind};
 use crate::field::mixnet::{MixnetEncoding, MixnetParams};
+use crate::field::model::Model;
 use crate::field::region::ChangeRegion;
 use crate::field::residual::{ResidualConfig, ResidualField, ResidualModel, ResidualParams};
 use crate::field::{NerfConfig, NerfField, NerfParams};
 use crate::mlp::LayerShape;
 use crate::render::{Aabb, OccupancyConfig, OccupancyGrid};
-use crate::train::model::Model;
 use crate::train::trainer::Nerf;
 use glam::Vec3;
 use safetensors::tensor::{Dtype, SafeTensors, TensorView};
@@ -142,24 +143,31 @@ pub struct ModelReader<'a> {
 
 impl<'a> ModelReader<'a> {
     /// Parses and checks the header: format and version.
-    pub fn parse(bytes: &'a [u8]) -> Result<ModelReader<'a>, String> {
+    pub fn parse(bytes: &'a [u8]) -> Result<ModelReader<'a>, Error> {
         if bytes.len() < 8 {
-            return Err(format!("not a model file: {} bytes (truncated or empty)", bytes.len()));
+            return Err(Error::corrupt(format!("not a model file: {} bytes (truncated or empty)", bytes.len())));
         }
         let (_, meta) = SafeTensors::read_metadata(bytes)
-            .map_err(|e| format!("not a model file, or truncated (safetensors: {e})"))?;
+            .map_err(|e| Error::corrupt(format!("not a model file, or truncated (safetensors: {e})")))?;
         let metadata = meta.metadata().clone().unwrap_or_default();
+        let unsupported = |m: String| Error::new(ErrorKind::Unsupported, m);
         match metadata.get("format").map(String::as_str) {
             Some(FORMAT) => {}
-            Some(other) => return Err(format!("not a residual-nerf model (format '{other}')")),
-            None => return Err("not a residual-nerf model (no 'format' in the metadata)".into()),
+            Some(other) => return Err(unsupported(format!("not a residual-nerf model (format '{other}')"))),
+            None => return Err(unsupported("not a residual-nerf model (no 'format' in the metadata)".into())),
         }
         let version = metadata.get("format_version").map(String::as_str).unwrap_or("?");
         if version != FORMAT_VERSION.to_string() {
-            return Err(format!("format version {version}, this build reads version {FORMAT_VERSION}"));
+            return Err(unsupported(format!("format version {version}, this build reads version {FORMAT_VERSION}")));
         }
-        let st = SafeTensors::deserialize(bytes).map_err(|e| format!("corrupt model file (safetensors: {e})"))?;
+        let st = SafeTensors::deserialize(bytes)
+            .map_err(|e| Error::corrupt(format!("corrupt model file (safetensors: {e})")))?;
         Ok(ModelReader { st, metadata })
+    }
+
+    /// All metadata entries.
+    pub fn metadata(&self) -> &HashMap<String, String> {
+        &self.metadata
     }
 
     /// A metadata value.
@@ -285,8 +293,9 @@ fn parse_config(v: &Value) -> Result<(NerfConfig, OccupancyConfig), String> {
 }
 
 /// Reads a whole model file (size-limited), errors naming the file.
-pub fn read_model_bytes(path: &Path) -> Result<Vec<u8>, String> {
-    super::read_limited(path, MAX_MODEL_BYTES).map_err(|e| format!("{}: model file: {e}", path.display()))
+pub fn read_model_bytes(path: &Path) -> Result<Vec<u8>, Error> {
+    super::read_limited(path, MAX_MODEL_BYTES)
+        .map_err(|e| Error::new(ErrorKind::Io, format!("{}: model file: {e}", path.display())))
 }
 
 /// A trainable field a model file holds: what a model file of it contains, given its
@@ -344,32 +353,34 @@ pub fn save_model<M: ModelFile>(
     params: &M::Params,
     occupancy: &OccupancyGrid,
     extra: &[(&str, String)],
-) -> Result<(), String> {
-    let mut w = field.writer(params, occupancy).map_err(|e| format!("{}: {e}", path.display()))?;
+) -> Result<(), Error> {
+    let mut w = field.writer(params, occupancy).map_err(|e| Error::bad_input(format!("{}: {e}", path.display())))?;
     for (k, v) in extra {
         w.meta(k, v);
     }
-    w.write(path)
+    w.write(path).map_err(|e| Error::new(ErrorKind::Io, e))
 }
 
 /// Saves a plain NeRF (`kind = "nerf"`) with extra informational metadata.
-pub fn save_nerf(path: &Path, nerf: &Nerf, extra: &[(&str, String)]) -> Result<(), String> {
+pub fn save_nerf(path: &Path, nerf: &Nerf, extra: &[(&str, String)]) -> Result<(), Error> {
     save_model(path, &nerf.field, &nerf.params, &nerf.occupancy, extra)
 }
 
 /// Loads a plain NeRF from model-file bytes.
-pub fn nerf_from_bytes(bytes: &[u8]) -> Result<Nerf, String> {
+pub fn nerf_from_bytes(bytes: &[u8]) -> Result<Nerf, Error> {
     let r = ModelReader::parse(bytes)?;
-    match r.meta("kind")? {
-        "nerf" => r.nerf(""),
-        other => Err(format!("model kind '{other}', expected a plain NeRF ('nerf')")),
+    match r.meta("kind").map_err(Error::corrupt)? {
+        "nerf" => r.nerf("").map_err(Error::corrupt),
+        other => {
+            Err(Error::new(ErrorKind::Unsupported, format!("model kind '{other}', expected a plain NeRF ('nerf')")))
+        }
     }
 }
 
 /// Loads a plain NeRF; errors name the file.
-pub fn load_nerf(path: &Path) -> Result<Nerf, String> {
+pub fn load_nerf(path: &Path) -> Result<Nerf, Error> {
     let bytes = read_model_bytes(path)?;
-    nerf_from_bytes(&bytes).map_err(|e| format!("{}: {e}", path.display()))
+    nerf_from_bytes(&bytes).map_err(|e| e.context(path.display()))
 }
 
 /// A model file of either kind.
@@ -393,57 +404,66 @@ fn mix_name(kind: MixKind) -> &'static str {
 /// under `mixnet.`, and `mix` / `mixnet_grid` metadata (`"shared"` when the Mixnet reads the
 /// residual's encoding; then there is no `mixnet.grid.params`). The background is embedded, so
 /// the file is all a robot needs.
-pub fn save_residual(path: &Path, m: &ResidualModel, extra: &[(&str, String)]) -> Result<(), String> {
+pub fn save_residual(path: &Path, m: &ResidualModel, extra: &[(&str, String)]) -> Result<(), Error> {
     save_model(path, &m.field, &m.params, &m.occupancy, extra)
 }
 
 /// Loads a model of either kind from model-file bytes.
-pub fn model_from_bytes(bytes: &[u8]) -> Result<LoadedModel, String> {
+pub fn model_from_bytes(bytes: &[u8]) -> Result<LoadedModel, Error> {
     let r = ModelReader::parse(bytes)?;
-    match r.meta("kind")? {
-        "nerf" => Ok(LoadedModel::Nerf(Box::new(r.nerf("")?))),
+    match r.meta("kind").map_err(Error::corrupt)? {
+        "nerf" => Ok(LoadedModel::Nerf(Box::new(r.nerf("").map_err(Error::corrupt)?))),
         "residual" => {
-            let background = r.nerf("background.")?;
-            let res = r.nerf("residual.")?;
+            let background = r.nerf("background.").map_err(Error::corrupt)?;
+            let res = r.nerf("residual.").map_err(Error::corrupt)?;
             if res.field.config().aabb != background.field.config().aabb {
-                return Err("residual and background scene boxes differ".into());
+                return Err(Error::new(ErrorKind::MismatchedBackground, "residual and background scene boxes differ"));
             }
-            let kind = match r.meta("mix")? {
+            let kind = match r.meta("mix").map_err(Error::corrupt)? {
                 "mixnet-raw" => MixKind::Mixnet(DensityMix::Raw),
                 "mixnet-activated" => MixKind::Mixnet(DensityMix::Activated),
                 "sum" => MixKind::Sum,
-                other => return Err(format!("metadata 'mix' = '{other}' is not mixnet-raw, mixnet-activated or sum")),
-            };
-            let g: Value =
-                serde_json::from_str(r.meta("mixnet_grid")?).map_err(|e| format!("metadata 'mixnet_grid': {e}"))?;
-            let mixnet_encoding = match g.as_str() {
-                Some("shared") => MixnetEncoding::Shared,
-                _ => MixnetEncoding::Own(parse_grid(&g).map_err(|e| format!("metadata 'mixnet_grid': {e}"))?),
-            };
-            let config = ResidualConfig { residual: res.field.config().clone(), kind, mixnet: mixnet_encoding };
-            let field = ResidualField::new(background, config);
-            let mixnet = field.mixnet();
-            let grid = match mixnet.grid() {
-                Some(g) => HashGridParams::from_master(r.tensor("mixnet.grid.params", &[g.entries(), 2])?),
-                None => HashGridParams::from_master(Vec::new()),
-            };
-            let mlp = mixnet.mlp_params_from(r.mlp("mixnet", mixnet.mlp().layers(), mixnet.mlp().n_params())?);
-            let params = ResidualParams { residual: res.params, mixnet: MixnetParams { grid, mlp } };
-            let mut occupancy = res.occupancy;
-            let field = match r.meta("region_resolution").ok() {
-                None => field,
-                Some(text) => {
-                    let region = read_region(&r, text, &field)?;
-                    if region.resolution() == occupancy.config().resolution {
-                        occupancy.pin(&region);
-                    }
-                    field.with_region(region)
+                other => {
+                    return Err(Error::new(
+                        ErrorKind::Unsupported,
+                        format!("metadata 'mix' = '{other}' is not mixnet-raw, mixnet-activated or sum"),
+                    ))
                 }
             };
-            Ok(LoadedModel::Residual(Box::new(ResidualModel { field, params, occupancy })))
+            residual_from(&r, background, res, kind).map_err(Error::corrupt)
         }
-        other => Err(format!("model kind '{other}' is not 'nerf' or 'residual'")),
+        other => Err(Error::new(ErrorKind::Unsupported, format!("model kind '{other}' is not 'nerf' or 'residual'"))),
     }
+}
+
+/// The rest of a residual model file once its two NeRFs and mixing rule are read.
+fn residual_from(r: &ModelReader<'_>, background: Nerf, res: Nerf, kind: MixKind) -> Result<LoadedModel, String> {
+    let g: Value = serde_json::from_str(r.meta("mixnet_grid")?).map_err(|e| format!("metadata 'mixnet_grid': {e}"))?;
+    let mixnet_encoding = match g.as_str() {
+        Some("shared") => MixnetEncoding::Shared,
+        _ => MixnetEncoding::Own(parse_grid(&g).map_err(|e| format!("metadata 'mixnet_grid': {e}"))?),
+    };
+    let config = ResidualConfig { residual: res.field.config().clone(), kind, mixnet: mixnet_encoding };
+    let field = ResidualField::new(background, config);
+    let mixnet = field.mixnet();
+    let grid = match mixnet.grid() {
+        Some(g) => HashGridParams::from_master(r.tensor("mixnet.grid.params", &[g.entries(), 2])?),
+        None => HashGridParams::from_master(Vec::new()),
+    };
+    let mlp = mixnet.mlp_params_from(r.mlp("mixnet", mixnet.mlp().layers(), mixnet.mlp().n_params())?);
+    let params = ResidualParams { residual: res.params, mixnet: MixnetParams { grid, mlp } };
+    let mut occupancy = res.occupancy;
+    let field = match r.meta("region_resolution").ok() {
+        None => field,
+        Some(text) => {
+            let region = read_region(r, text, &field)?;
+            if region.resolution() == occupancy.config().resolution {
+                occupancy.pin(&region);
+            }
+            field.with_region(region)
+        }
+    };
+    Ok(LoadedModel::Residual(Box::new(ResidualModel { field, params, occupancy })))
 }
 
 /// The change region of a residual model file (`region_resolution` metadata, `region.cells`).
@@ -473,7 +493,7 @@ fn read_region(r: &ModelReader<'_>, resolution: &str, field: &ResidualField) -> 
 }
 
 /// Loads a model of either kind; errors name the file.
-pub fn load_model(path: &Path) -> Result<LoadedModel, String> {
+pub fn load_model(path: &Path) -> Result<LoadedModel, Error> {
     let bytes = read_model_bytes(path)?;
-    model_from_bytes(&bytes).map_err(|e| format!("{}: {e}", path.display()))
+    model_from_bytes(&bytes).map_err(|e| e.context(path.display()))
 }

@@ -25,6 +25,11 @@ pub enum DensityThreshold {
 }
 
 impl DensityThreshold {
+    /// The default threshold: σ ≥ 10 per dataset unit (per metre). The paper's m = 3 is in its
+    /// own units (the authors' code tests raw s > 3, σ > e³); on the dev background σ ≥ 10/m
+    /// gave the lowest depth error of 3, 10 and 20 (docs/DECISIONS.md, "The engine").
+    pub const DEFAULT: DensityThreshold = DensityThreshold::Sigma(10.0);
+
     /// Whether a sample with raw density `s` (σ = e^s) is solid.
     #[inline]
     pub fn is_hit(self, raw: f32) -> bool {
@@ -47,13 +52,32 @@ impl DensityThreshold {
     }
 }
 
-/// How a depth map is computed.
+/// How depth is read off each ray: the renderer, the command line (`--depth`, `--m`,
+/// `--m-raw`) and the onboard API take this one type.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum DepthMethod {
-    /// `Σ w_i t_i` (paper Eq. 3).
-    Expected,
-    /// First sample at or above a density threshold (Dex-NeRF).
+    /// Dex-NeRF: the first sample whose density reaches the threshold (holes where none does).
+    /// The default, at [`DensityThreshold::DEFAULT`].
     Threshold(DensityThreshold),
+    /// NeRF's expected depth `Σ w_i t_i` (paper Eq. 3); never a hole, blurred at glass.
+    Expected,
+}
+
+impl Default for DepthMethod {
+    fn default() -> Self {
+        DepthMethod::Threshold(DensityThreshold::DEFAULT)
+    }
+}
+
+impl DepthMethod {
+    /// The density threshold of threshold depth; for [`DepthMethod::Expected`] the default one
+    /// (a full render reports threshold depth beside the expected one).
+    pub fn threshold(self) -> DensityThreshold {
+        match self {
+            DepthMethod::Threshold(m) => m,
+            DepthMethod::Expected => DensityThreshold::DEFAULT,
+        }
+    }
 }
 
 /// `Σ w_i t_i` of a composited ray.

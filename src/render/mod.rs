@@ -2,17 +2,16 @@
 //! compositing along rays (§2.2), depth extraction (Eq. 3, Dex-NeRF; §2.4), and whole views
 //! into caller buffers ([`view`]).
 
-pub mod camera;
 pub mod composite;
 pub mod depth;
 pub mod distortion;
 pub mod occupancy;
 pub mod view;
 
-pub use camera::{pixel_ray, Intrinsics, Pose, Ray};
+pub use crate::geometry::{pixel_ray, Aabb, DepthKind, Intrinsics, Pose, Ray};
 pub use composite::{
     composite_ray, composite_ray_backward, weights_from_density, RayAccumulator, RayComposite, EARLY_STOP_TRANSMITTANCE,
 };
 pub use depth::{expected_depth, threshold_depth, DensityThreshold, DepthMethod};
-pub use occupancy::{Aabb, OccupancyConfig, OccupancyGrid, PackedSamples, RaySpan};
+pub use occupancy::{OccupancyConfig, OccupancyGrid, PackedSamples, RaySpan};
 pub use view::{FullOutputs, RenderedView, ViewRenderer};

@@ -17,42 +17,9 @@
 //! Empty space is crossed cell by cell (3-D DDA), and a block of [`BLOCK`]³ cells that is
 //! empty as a whole in one jump — the same cells and boundary times, fewer steps.
 
+use crate::geometry::Aabb;
 use crate::rng::Rng;
 use glam::Vec3;
-
-/// The scene's axis-aligned bounding box.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Aabb {
-    /// Minimum corner.
-    pub min: Vec3,
-    /// Maximum corner.
-    pub max: Vec3,
-}
-
-impl Aabb {
-    /// Size along each axis.
-    pub fn size(&self) -> Vec3 {
-        self.max - self.min
-    }
-
-    /// `p` mapped to the unit cube of the box.
-    pub fn to_unit(&self, p: Vec3) -> Vec3 {
-        (p - self.min) / self.size()
-    }
-
-    /// Entry and exit distances of a ray (unit `dir`), clipped to `t ≥ 0`; `None` if it misses.
-    pub fn intersect(&self, origin: Vec3, dir: Vec3) -> Option<(f32, f32)> {
-        let inv = dir.recip();
-        let a = (self.min - origin) * inv;
-        let b = (self.max - origin) * inv;
-        // NaN (0 · ∞ for an axis-parallel ray on a face) is treated as "no constraint".
-        let lo = a.min(b);
-        let hi = a.max(b);
-        let near = [lo.x, lo.y, lo.z].into_iter().filter(|v| !v.is_nan()).fold(0.0f32, f32::max);
-        let far = [hi.x, hi.y, hi.z].into_iter().filter(|v| !v.is_nan()).fold(f32::INFINITY, f32::min);
-        (near < far).then_some((near, far))
-    }
-}
 
 /// Occupancy-grid settings.
 #[derive(Clone, Debug, PartialEq)]
@@ -352,6 +319,7 @@ impl OccupancyGrid {
                 span,
                 0..span.steps,
                 self.config.max_samples as usize,
+                1,
                 &mut out.t,
                 &mut out.delta,
             );
@@ -371,6 +339,13 @@ impl OccupancyGrid {
     /// lattice), at most `max`, to `ts`/`deltas`; returns the step to continue from
     /// (`≥ steps.end` once the range is done). Segments concatenate to exactly
     /// [`Self::march`]'s samples, and a sample's `t` depends only on its step.
+    ///
+    /// `stride > 1` on a grid with a pinned region (a residual model's change region, outside
+    /// which its field is the frozen background): outside the pinned cells one sample stands
+    /// for a run of up to `stride` consecutive occupied steps, at the run's middle with
+    /// `δ = run · step`. Runs end before an empty or a pinned step, so the samples cover the
+    /// same lattice steps as with `stride = 1` (the same `Σ δ`) and those inside the pinned
+    /// cells are the same samples. `stride = 1`, or a grid without pins: every step.
     #[allow(clippy::too_many_arguments)]
     pub fn march_segment(
         &self,
@@ -379,9 +354,12 @@ impl OccupancyGrid {
         span: RaySpan,
         steps: std::ops::Range<u32>,
         max: usize,
+        stride: u32,
         ts: &mut Vec<f32>,
         deltas: &mut Vec<f32>,
     ) -> u32 {
+        let pinned = self.pinned.as_deref().filter(|_| stride > 1);
+        let bit = |bits: &[u64], i: usize| bits[i / 64] >> (i % 64) & 1 == 1;
         let res = self.config.resolution as i32;
         let r = res as f32;
         let dt = self.step_size;
@@ -395,10 +373,25 @@ impl OccupancyGrid {
             let mid = near + (k as f32 + 0.5) * dt;
             let c = floor3(q0 + mid * dq);
             if self.occupied_cell(c) {
-                ts.push(mid);
-                deltas.push(dt);
+                let mut run = 1;
+                if let Some(p) = pinned.filter(|p| !bit(p, self.index_of_cell(c))) {
+                    while run < stride && k + run < end {
+                        let i = self.index_of_cell(floor3(q0 + (near + ((k + run) as f32 + 0.5) * dt) * dq));
+                        if !bit(&self.bits, i) || bit(p, i) {
+                            break;
+                        }
+                        run += 1;
+                    }
+                }
+                if run == 1 {
+                    ts.push(mid);
+                    deltas.push(dt);
+                } else {
+                    ts.push(near + (k as f32 + 0.5 * run as f32) * dt);
+                    deltas.push(dt * run as f32);
+                }
                 taken += 1;
-                k += 1;
+                k += run;
             } else {
                 // Walk the cells after this empty one (3-D DDA) to the next occupied one, then
                 // resume at the first step whose midpoint lies past the entry into it.

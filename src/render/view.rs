@@ -20,9 +20,10 @@ use super::depth::DensityThreshold;
 use super::occupancy::RaySpan;
 use super::OccupancyGrid;
 use super::{pixel_ray, Intrinsics, Pose, Ray};
+use crate::field::model::Model;
+use crate::field::residual::{ResidualField, ResidualModel};
 use crate::field::{Nerf, NerfField};
 use crate::simd::Isa;
-use crate::train::model::Model;
 use glam::Vec3;
 use rayon::prelude::*;
 use std::sync::Mutex;
@@ -153,6 +154,12 @@ impl<'a> From<&'a Nerf> for Scene<'a, NerfField> {
     }
 }
 
+impl<'a> From<&'a ResidualModel> for Scene<'a, ResidualField> {
+    fn from(m: &'a ResidualModel) -> Self {
+        Scene { model: &m.field, params: &m.params, occupancy: &m.occupancy }
+    }
+}
+
 impl<M: Model> ViewRenderer<M> {
     /// An empty renderer (buffers grow on first use).
     pub fn new() -> ViewRenderer<M> {
@@ -276,7 +283,7 @@ impl<M: Model> Worker<M> {
                 let start = self.t.len();
                 let room = segment.min(max_samples.saturating_sub(s.taken) as usize);
                 let (o, d) = (s.ray.origin, s.ray.dir);
-                s.next = occ.march_segment(o, d, s.span, s.next..s.span.steps, room, &mut self.t, &mut self.delta);
+                s.next = occ.march_segment(o, d, s.span, s.next..s.span.steps, room, 1, &mut self.t, &mut self.delta);
                 let count = self.t.len() - start;
                 s.taken += count as u32;
                 self.seg.push((start as u32, count as u32));

@@ -8,7 +8,7 @@ use crate::encoding::{HashGrid, HashGridConfig, HashGridParams};
 use crate::mlp::{Activation, Mlp, MlpConfig, MlpContext, MlpParams, MlpWorkspace};
 use crate::rng::Rng;
 use crate::simd::Isa;
-use crate::train::slots::{accumulate_in_order, slot_range, split_rows, SLOTS};
+use crate::slots::{accumulate_in_order, slot_range, split_rows, SLOTS};
 use crate::train::{Adam, AdamConfig, LrSchedule};
 use crate::GradientMode;
 use rayon::prelude::*;

@@ -10,12 +10,12 @@
 //! background's surfaces. With the activated mix `σ = (1−β)σ_bg + βσ_res` the mixed field then
 //! starts at the background plus at most `β·e^{s₀}` of fog inside the region.
 
+use crate::field::model::Model;
 use crate::field::region::ChangeRegion;
 use crate::field::{Nerf, NerfField, NerfParams};
 use crate::mlp::Activation;
 use crate::rng::Rng;
 use crate::simd::Isa;
-use crate::train::model::Model;
 use crate::train::{Adam, AdamConfig};
 use glam::Vec3;
 

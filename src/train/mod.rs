@@ -5,9 +5,7 @@ pub mod adam;
 pub mod beta;
 pub mod field_fit;
 pub mod lift;
-pub mod model;
 pub mod prior;
-pub mod slots;
 pub mod trainer;
 
 pub use adam::{Adam, AdamConfig, LrSchedule};

@@ -25,6 +25,8 @@
 //!    step's rays from these pixels (changed or not: the unchanged ones carve the region's
 //!    floaters) instead of from the whole image.
 
+use crate::data::View;
+use crate::field::model::Model;
 use crate::field::region::ChangeRegion;
 use crate::field::residual::{ResidualConfig, ResidualField, ResidualParams};
 use crate::field::Nerf;
@@ -35,8 +37,6 @@ use crate::rng::Rng;
 use crate::simd::Isa;
 use crate::train::beta::BetaRegulariser;
 use crate::train::lift::{lift_region, LiftConfig, LiftReport};
-use crate::train::model::Model;
-use crate::train::trainer::View;
 use crate::train::trainer::{Focus, TrainConfig};
 use glam::Vec3;
 use rayon::prelude::*;

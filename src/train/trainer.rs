@@ -8,7 +8,7 @@
 //! and walks it in chunks of whole rays (at least [`CHUNK_SAMPLES`] marched samples), each
 //! chunk marched, run through the densities, cut at each ray's opaque point, run through the
 //! colours, composited, and back-propagated to its feature gradients before the next chunk
-//! starts — so a sample's activations never leave L1/L2 ([`crate::train::model`]). The grids'
+//! starts — so a sample's activations never leave L1/L2 ([`crate::field::model`]). The grids'
 //! gradients are scattered once per step from the gathered feature gradients.
 //!
 //! A run is a [`Trainer`] stepped by its caller, who decides between steps what to log,
@@ -22,41 +22,31 @@
 //! [`TrainState`] (parameters, occupancy grid, Adam moments, step), so a run resumed from a
 //! saved state continues bit-exactly.
 
+use crate::data::View;
+use crate::field::model::Model;
 use crate::field::residual::{ResidualConfig, ResidualField, ResidualModel};
 pub use crate::field::Nerf;
 use crate::field::{NerfConfig, NerfField};
 use crate::render::distortion::distortion_backward;
 use crate::render::{
-    composite_ray, composite_ray_backward, pixel_ray, Aabb, Intrinsics, OccupancyConfig, OccupancyGrid, PackedSamples,
-    Pose, Ray, RayAccumulator,
+    composite_ray, composite_ray_backward, pixel_ray, Aabb, OccupancyConfig, OccupancyGrid, PackedSamples, Ray,
+    RayAccumulator,
 };
 use crate::rng::Rng;
 use crate::simd::Isa;
+use crate::slots::{slot_range, SLOTS};
 use crate::train::beta::{beta_terms, BetaRegulariser};
-use crate::train::model::Model;
-use crate::train::slots::{slot_range, SLOTS};
 use crate::train::{Adam, AdamConfig, LrSchedule};
 use glam::Vec3;
 use rayon::prelude::*;
 use std::time::Instant;
 
-/// One posed training image with linear RGB values in [0, 1], row-major from the top-left.
-#[derive(Clone, Debug)]
-pub struct View {
-    /// Camera intrinsics.
-    pub intrinsics: Intrinsics,
-    /// Camera-to-world pose.
-    pub pose: Pose,
-    /// `width × height` colours.
-    pub rgb: Vec<[f32; 3]>,
-}
-
 /// Trainer settings.
 #[derive(Clone, Debug)]
 pub struct TrainConfig {
-    /// Optimiser steps. Defaults to 2000.
+    /// Optimiser steps. Defaults to [`TRAIN_STEPS`].
     pub steps: u32,
-    /// Rays per step. Defaults to 4096.
+    /// Rays per step. Defaults to [`TRAIN_RAYS`].
     pub rays_per_step: usize,
     /// Learning rate against step. Defaults to 1e-2, decaying ×0.33 from 60% of the steps every 15%.
     pub schedule: LrSchedule,
@@ -64,12 +54,13 @@ pub struct TrainConfig {
     pub occupancy_interval: u32,
     /// Occupancy grid and marching. Defaults to [`OccupancyConfig::default`].
     pub occupancy: OccupancyConfig,
-    /// Colour behind the scene where rays leave the box (C's background term). Defaults to black.
+    /// Colour behind the scene where rays leave the box (C's background term). Defaults to white
+    /// (what a dataset's images with alpha are composited over when loaded).
     pub background: [f32; 3],
     /// Draw each training ray's background colour uniformly at random instead (targets
     /// unchanged): transmittance left at the end of a ray then costs loss, so the field must
     /// make every surface opaque. Right for images without alpha (every pixel shows a surface);
-    /// `rnerf train` turns it on for such datasets. Defaults to false.
+    /// `rnerf train` turns it off for images with alpha. Defaults to true.
     pub random_background: bool,
     /// Seed of initialisation and sampling. Defaults to 0.
     pub seed: u64,
@@ -87,6 +78,11 @@ pub struct TrainConfig {
     /// The β regularisers of a residual model (the unchanged-ray penalty needs [`Self::focus`]:
     /// a pixel outside its list is unchanged). Defaults to off.
     pub beta: BetaRegulariser,
+    /// Lattice steps one training sample stands for where the field is known to be the frozen
+    /// background: outside the cells the occupancy grid pins (a residual model's change
+    /// region; [`OccupancyGrid::march_segment`]). 1: every step. Models without pinned cells
+    /// sample every step whatever this says. Defaults to [`FROZEN_STRIDE`].
+    pub frozen_stride: u32,
 }
 
 /// A share of each step's rays drawn uniformly from a fixed list of pixels.
@@ -109,12 +105,26 @@ pub const NEAR_GRADIENT_DISTANCE: f32 = 0.0;
 /// at the weights tried (docs/DECISIONS.md, "The engine").
 pub const DISTORTION: f32 = 0.0;
 
+/// Default of [`TrainConfig::frozen_stride`] (chosen by measured depth and time;
+/// docs/DECISIONS.md, "The frozen background sampled coarsely").
+pub const FROZEN_STRIDE: u32 = 1;
+
+/// Default training steps: with [`TRAIN_RAYS`], about 2–3 minutes for 100 views of 200×200 on
+/// a 2-core machine (BENCHMARKS.md; docs/DECISIONS.md, "The engine").
+pub const TRAIN_STEPS: u32 = 1000;
+
+/// Default rays per step (fixed per-step costs — Adam over the 16 M grid parameters — are
+/// small beside 1024 rays, and more, smaller steps learn faster per second than 4096-ray ones
+/// here; measured in docs/DECISIONS.md).
+pub const TRAIN_RAYS: usize = 1024;
+
 impl TrainConfig {
-    /// Defaults for `steps` steps (the schedule scales with it).
+    /// The defaults (what `rnerf train` does for images without alpha) for `steps` steps: the
+    /// learning-rate schedule scales with it.
     pub fn with_steps(steps: u32) -> TrainConfig {
         TrainConfig {
             steps,
-            rays_per_step: 4096,
+            rays_per_step: TRAIN_RAYS,
             schedule: LrSchedule {
                 base: 1e-2,
                 warmup_steps: 0,
@@ -124,20 +134,24 @@ impl TrainConfig {
             },
             occupancy_interval: 16,
             occupancy: OccupancyConfig::default(),
-            background: [0.0; 3],
-            random_background: false,
+            background: [1.0; 3],
+            random_background: true,
             seed: 0,
             distortion: DISTORTION,
             near_gradient_distance: NEAR_GRADIENT_DISTANCE,
             focus: None,
             beta: BetaRegulariser::default(),
+            frozen_stride: FROZEN_STRIDE,
         }
     }
 }
 
 impl Default for TrainConfig {
+    /// What `rnerf train` does: [`TRAIN_STEPS`] steps of [`TRAIN_RAYS`] rays, Adam at 1e-2 with
+    /// step decay from 60% of the steps, occupancy every 16 steps (all cells for the first 256),
+    /// random background colours (the CLI turns them off for images with alpha).
     fn default() -> Self {
-        TrainConfig::with_steps(2000)
+        TrainConfig::with_steps(TRAIN_STEPS)
     }
 }
 
@@ -282,7 +296,7 @@ impl<C> Worker<C> {
     /// opaque point. The samples are exactly those of marching the whole ray.
     fn add_ray<M: Model<Chunk = C>>(&mut self, x: &StepInputs<M>, r: &Ray) {
         let (occ, m) = (x.occupancy, &mut self.marched);
-        let max = occ.config().max_samples;
+        let (max, stride) = (occ.config().max_samples, x.cfg.frozen_stride);
         let start = m.t.len();
         let first_kept = self.keep.len() as u32;
         if let Some(span) = occ.span(r.origin, r.dir) {
@@ -291,7 +305,7 @@ impl<C> Worker<C> {
             loop {
                 let s0 = m.t.len();
                 let room = segment.min(max.saturating_sub(taken) as usize);
-                next = occ.march_segment(r.origin, r.dir, span, next..span.steps, room, &mut m.t, &mut m.delta);
+                next = occ.march_segment(r.origin, r.dir, span, next..span.steps, room, stride, &mut m.t, &mut m.delta);
                 let count = m.t.len() - s0;
                 if count == 0 {
                     break;

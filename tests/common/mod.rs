@@ -130,6 +130,7 @@ pub fn trained_tabletop() -> residual_nerf::field::Nerf {
     let mut cfg = TrainConfig::with_steps(40);
     cfg.rays_per_step = 512;
     cfg.background = synth::SKY;
+    cfg.random_background = false; // the sky shows where rays miss the scene
     cfg.occupancy = OccupancyConfig { resolution: 16, steps_per_diagonal: 128, warmup_steps: 16, ..Default::default() };
     train_nerf(residual_nerf::simd::Isa::detect(), &scene.views, field, &cfg, 0, |_| {}).expect("trains")
 }

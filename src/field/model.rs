@@ -22,7 +22,7 @@ use crate::field::{FieldChunk, FieldContext, NerfField, NerfGrads, NerfParams, N
 use crate::mlp::{keep_rows, Activation};
 use crate::rng::Rng;
 use crate::simd::Isa;
-use crate::train::slots::accumulate_in_order;
+use crate::slots::accumulate_in_order;
 use crate::GradientMode;
 use glam::Vec3;
 

@@ -115,3 +115,25 @@ pub fn pixel_ray(k: &Intrinsics, pose: &Pose, i: u32, j: u32) -> Ray {
     let dir = (pose.rotation * cam).normalize();
     Ray { origin: pose.translation, dir, z_per_t: dir.dot(pose.forward()) }
 }
+
+/// What a depth value measures (a dataset's ground truth, an export, the onboard API's output).
+/// Both are in the dataset's length unit (metres for ours); holes are NaN.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum DepthKind {
+    /// Distance along the camera's viewing axis (what depth cameras report: ROS depth images,
+    /// Dex-Net, OpenCV).
+    #[default]
+    Z,
+    /// Distance along each pixel's ray from the camera centre (a lidar's range).
+    Range,
+}
+
+impl DepthKind {
+    /// The name used in json files and reports (`"z"`, `"range"`).
+    pub fn name(self) -> &'static str {
+        match self {
+            DepthKind::Z => "z",
+            DepthKind::Range => "range",
+        }
+    }
+}

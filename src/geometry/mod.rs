@@ -1,0 +1,42 @@
+//! Geometry every layer shares: the scene box ([`Aabb`]: the field's encodings, the occupancy
+//! grid, the change region, the datasets) and cameras ([`camera`]: intrinsics, poses, pixel
+//! rays, depth conventions).
+
+pub mod camera;
+
+pub use camera::{pixel_ray, DepthKind, Intrinsics, Pose, Ray};
+use glam::Vec3;
+
+/// The scene's axis-aligned bounding box.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Aabb {
+    /// Minimum corner.
+    pub min: Vec3,
+    /// Maximum corner.
+    pub max: Vec3,
+}
+
+impl Aabb {
+    /// Size along each axis.
+    pub fn size(&self) -> Vec3 {
+        self.max - self.min
+    }
+
+    /// `p` mapped to the unit cube of the box.
+    pub fn to_unit(&self, p: Vec3) -> Vec3 {
+        (p - self.min) / self.size()
+    }
+
+    /// Entry and exit distances of a ray (unit `dir`), clipped to `t ≥ 0`; `None` if it misses.
+    pub fn intersect(&self, origin: Vec3, dir: Vec3) -> Option<(f32, f32)> {
+        let inv = dir.recip();
+        let a = (self.min - origin) * inv;
+        let b = (self.max - origin) * inv;
+        // NaN (0 · ∞ for an axis-parallel ray on a face) is treated as "no constraint".
+        let lo = a.min(b);
+        let hi = a.max(b);
+        let near = [lo.x, lo.y, lo.z].into_iter().filter(|v| !v.is_nan()).fold(0.0f32, f32::max);
+        let far = [hi.x, hi.y, hi.z].into_iter().filter(|v| !v.is_nan()).fold(f32::INFINITY, f32::min);
+        (near < far).then_some((near, far))
+    }
+}
