@@ -37,14 +37,16 @@ fn main() -> Result<(), String> {
     let (mut rays, mut marched, mut kept, mut to_99, mut to_01) = (0usize, 0usize, 0usize, 0usize, 0usize);
     let (mut count, mut weight) = ([0usize; 5], [0f64; 5]);
     let mut by_distance = [0usize; 8];
-    let (mut samples, mut sigma, mut ctx) = (PackedSamples::default(), Vec::new(), Default::default());
+    let (mut samples, mut positions, mut sigma, mut ctx) =
+        (PackedSamples::default(), Vec::new(), Vec::new(), Default::default());
     for v in views.iter().step_by(every_view) {
         for j in (0..v.intrinsics.height).step_by(every_pixel) {
             for i in (0..v.intrinsics.width).step_by(every_pixel) {
                 let r = pixel_ray(&v.intrinsics, &v.pose, i, j);
                 samples.clear();
                 occ.march(r.origin, r.dir, &mut samples);
-                let positions: Vec<_> = samples.t.iter().map(|&t| r.at(t)).collect();
+                positions.clear();
+                positions.extend(samples.t.iter().map(|&t| r.at(t)));
                 sigma.resize(positions.len(), 0.0);
                 Model::density(&nerf.field, isa, &nerf.params, &positions, &mut sigma, &mut ctx);
                 rays += 1;

@@ -372,9 +372,10 @@ impl OccupancyGrid {
         while k < end && taken < max {
             let mid = near + (k as f32 + 0.5) * dt;
             let c = floor3(q0 + mid * dq);
-            if self.occupied_cell(c) {
+            let i = self.index_of_cell(c);
+            if bit(&self.bits, i) {
                 let mut run = 1;
-                if let Some(p) = pinned.filter(|p| !bit(p, self.index_of_cell(c))) {
+                if let Some(p) = pinned.filter(|p| !bit(p, i)) {
                     while run < stride && k + run < end {
                         let i = self.index_of_cell(floor3(q0 + (near + ((k + run) as f32 + 0.5) * dt) * dq));
                         if !bit(&self.bits, i) || bit(p, i) {
@@ -401,13 +402,6 @@ impl OccupancyGrid {
             }
         }
         k
-    }
-
-    /// Whether the cell at (floored) grid coordinates `c` is occupied (clamped into the grid).
-    #[inline]
-    fn occupied_cell(&self, c: Vec3) -> bool {
-        let i = self.index_of_cell(c);
-        self.bits[i / 64] >> (i % 64) & 1 == 1
     }
 
     /// Where the ray `q0 + t·dq` (grid coordinates) enters the first occupied cell after cell
