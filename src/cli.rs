@@ -15,7 +15,7 @@ commands:
          [--split NAME] [--csv FILE] [--lr LR] [--distortion L] [--near-grad D] [--fixed-background] [--background BG_MODEL [--mix mixnet|sum]
          [--density-mix raw|activated] [--mixnet-encoding own|shared] [--prior all|none|warm-start,region,focus,beta,reach]
          [--background-data BG_DIR] [--beta U,E] [--region-floor S|off] [--focus-share F]
-         [--region-vote V,S] [--frozen-stride N]] [--checkpoint-every N]
+         [--region-vote V,S] [--frozen-stride N] [--exposure-correction on|off]] [--checkpoint-every N]
          [--scene-views N]
          train a NeRF on DIR's transforms_<split>.json (default split: train); with --background,
          a Residual-NeRF (residual + Mixnet over the frozen background; --mix sum: Residual-NeRF-S),
@@ -40,6 +40,7 @@ commands:
          [--methods dex,finetune,residual-paper,residual,...] [--scene-views N] [--steps N] [--rays N]
          [--log2t N] [--seed S] [--eval-every N] [--m M | --m-raw S] [--m-sweep M,M,...] [--threads N]
          [--beta U,E] [--region-floor S|off] [--focus-share F] [--region-vote V,S] [--frozen-stride N]
+         [--exposure-correction on|off]
          (--m-sweep: also score the final models at these σ thresholds, default 3,10,20,40;
          --beta: weights of the background-aware methods' β penalty and entropy;
          --region-floor: lift the warm-started residual's raw density in the change region to S;
@@ -48,6 +49,8 @@ commands:
          at least V of those see a change there, default 0.5,0.25;
          --frozen-stride: outside the change region one training sample stands for N marching
          steps of the frozen background, default 1 (every step);
+         --exposure-correction: fit each scene image's exposure and white balance to the
+         background's before the change maps and training, default on;
          methods: dex, finetune, residual, residual-no-warm-start, residual-no-region,
          residual-no-focus, residual-no-reach, residual-no-beta, residual-activated, residual-activated-no-warm-start,
          residual-paper, residual-paper-activated, residual-paper-shared,
@@ -57,6 +60,13 @@ commands:
          and the background-aware Residual-NeRF; scored on the object mask, the near crop (< 1.5 m)
          and the crop; writes table.md, table.json, curves.csv, <scene>/curves.png and
          <scene>/depth_<i>.png side by side
+  import colmap --model SPARSE_DIR --images DIR --out DIR [--background-match TEXT]
+         [--known-distance IMAGE_A,IMAGE_B,METRES]
+         a COLMAP sparse model (cameras, images, points3D; .bin or .txt) as transforms_train.json
+         (OpenGL poses, the lens, a scene box from the points); with --background-match, images
+         whose name contains TEXT go to OUT/background and the rest to OUT/scene (one COLMAP run
+         registers both, as in the paper); --known-distance fixes the scale from the distance
+         between two images' camera centres (else COLMAP's unit is taken as a metre)
   demo   [--out DIR] [--steps N] [--size PX] [--seed S] [--threads N]
          synthesise a workspace and a glass object, then compare as above (default out: rnerf-demo)
   bench  [--json] [--reps N] [--log2t N] [--threads N] [--model MODEL [--model MODEL] --data DIR]
@@ -79,6 +89,8 @@ pub use crate::eval::CropRule;
 pub enum Command {
     /// `rnerf train`.
     Train(TrainArgs),
+    /// `rnerf import colmap`.
+    ImportColmap(crate::data::colmap::ImportOptions),
     /// `rnerf render`.
     Render {
         /// Model file (`--model`).
@@ -205,6 +217,9 @@ pub struct TrainArgs {
     /// The region's vote: share of the seeing views that must see a change, share of all
     /// views that must see the cell (`--region-vote V,S`).
     pub region_vote: Option<(f32, f32)>,
+    /// Whether the scene images are corrected to the background's exposure and white balance
+    /// (`--exposure-correction on|off`; default on).
+    pub exposure_correction: Option<bool>,
     /// Lattice steps per training sample outside a residual model's change region
     /// (`--frozen-stride N`).
     pub frozen_stride: Option<u32>,
@@ -252,6 +267,9 @@ pub struct CompareArgs {
     /// The region's vote: share of the seeing views that must see a change, share of all
     /// views that must see the cell (`--region-vote V,S`).
     pub region_vote: Option<(f32, f32)>,
+    /// Whether the scene images are corrected to the background's exposure and white balance
+    /// (`--exposure-correction on|off`; default on).
+    pub exposure_correction: Option<bool>,
     /// Lattice steps per training sample outside a residual model's change region
     /// (`--frozen-stride N`).
     pub frozen_stride: Option<u32>,
@@ -318,6 +336,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             "focus-share",
             "region-vote",
             "frozen-stride",
+            "exposure-correction",
         ],
         "render" => &["model", "data", "out", "split", "depth", "m", "m-raw", "threads"],
         "eval" => &["model", "data", "split", "depth", "m", "m-raw", "crop", "limit", "json", "threads"],
@@ -342,8 +361,20 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             "focus-share",
             "region-vote",
             "frozen-stride",
+            "exposure-correction",
         ],
         "demo" => &["out", "steps", "size", "seed", "threads"],
+        "import" => {
+            match p.next().map_err(|e| err(e.to_string()))? {
+                Some(Value(v)) if v == "colmap" => {}
+                _ => {
+                    return Err(err(
+                        "import: expected 'colmap' (rnerf import colmap --model DIR --images DIR --out DIR)",
+                    ))
+                }
+            }
+            &["model", "images", "out", "background-match", "known-distance"]
+        }
         "bench" => &["json", "reps", "log2t", "threads", "model", "data"],
         other => return Err(err(format!("unknown command '{other}' (try 'rnerf help')"))),
     };
@@ -408,6 +439,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             region_floor: f.region_floor,
             focus_share: f.focus_share,
             region_vote: f.region_vote,
+            exposure_correction: f.exposure_correction,
             frozen_stride: f.frozen_stride,
         }),
         "render" => Command::Render {
@@ -456,9 +488,17 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             region_floor: f.region_floor,
             focus_share: f.focus_share,
             region_vote: f.region_vote,
+            exposure_correction: f.exposure_correction,
             frozen_stride: f.frozen_stride,
         }),
         "demo" => Command::Demo { out: f.out.clone(), steps: f.steps, size: f.size, seed: f.seed, threads },
+        "import" => Command::ImportColmap(crate::data::colmap::ImportOptions {
+            model: f.need_path("model", "import colmap")?,
+            images: f.images.clone().ok_or_else(|| err("import colmap: --images is required (try 'rnerf help')"))?,
+            out: f.need_path("out", "import colmap")?,
+            background_match: f.background_match.clone(),
+            known_distance: f.known_distance.clone(),
+        }),
         _ => {
             if f.models.is_empty() != f.data.is_none() {
                 return Err(err(
@@ -521,9 +561,13 @@ struct Flags {
     region_floor: Option<Option<f32>>,
     focus_share: Option<f32>,
     region_vote: Option<(f32, f32)>,
+    exposure_correction: Option<bool>,
     frozen_stride: Option<u32>,
     /// Flags given, in order.
     given: Vec<String>,
+    images: Option<PathBuf>,
+    background_match: Option<String>,
+    known_distance: Option<(String, String, f64)>,
 }
 
 impl Flags {
@@ -593,6 +637,39 @@ impl Flags {
                 }
             }
             "resume" => self.resume = Some(path(p, name)?),
+            "exposure-correction" => {
+                self.exposure_correction = Some(match text(p, name)?.as_str() {
+                    "on" => true,
+                    "off" => false,
+                    other => return Err(err(format!("--exposure-correction: '{other}' is not on or off"))),
+                })
+            }
+            "images" => self.images = Some(path(p, name)?),
+            "background-match" => {
+                let s = text(p, name)?;
+                if s.is_empty() {
+                    return Err(err("--background-match: empty text would match every image"));
+                }
+                self.background_match = Some(s);
+            }
+            "known-distance" => {
+                let s = text(p, name)?;
+                let parts: Vec<&str> = s.rsplitn(2, ',').collect();
+                let parsed = match parts[..] {
+                    [metres, names] => names.split_once(',').zip(metres.parse::<f64>().ok()),
+                    _ => None,
+                };
+                match parsed {
+                    Some(((a, b), m)) if m.is_finite() && m > 0.0 && !a.is_empty() && !b.is_empty() => {
+                        self.known_distance = Some((a.to_string(), b.to_string(), m))
+                    }
+                    _ => {
+                        return Err(err(format!(
+                            "--known-distance: '{s}' is not IMAGE_A,IMAGE_B,METRES (two image names and a positive distance)"
+                        )))
+                    }
+                }
+            }
             "json" => self.json = true,
             "fixed-background" => self.fixed_background = true,
             "data" => self.data = Some(path(p, name)?),

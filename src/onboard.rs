@@ -181,6 +181,9 @@ impl DepthRenderer {
                 k.fx, k.fy, k.cx, k.cy
             )));
         }
+        k.distortion
+            .check(k.width, k.height, k.fx, k.fy, k.cx, k.cy)
+            .map_err(|m| Error::bad_input(format!("intrinsics: {m}")))?;
         if !(pose.translation.is_finite() && pose.rotation.is_finite()) {
             return Err(Error::bad_input("pose holds a non-finite value"));
         }

@@ -196,6 +196,26 @@ fn catalogue() -> Vec<Case> {
             json!({"file_path": "train/missing", "transform_matrix": pose(1.0)}),
             &["frame 0", "file_path", "not found"],
         ),
+        json_case(
+            "unknown lens model",
+            "{\"camera_angle_x\": 0.7, \"camera_model\": \"FULL_OPENCV\", \"frames\": [{\"file_path\": \"train/a\", \"transform_matrix\": [[1,0,0,0],[0,1,0,0],[0,0,1,1],[0,0,0,1]]}]}",
+            &["transforms_train.json", "field 'camera_model'", "FULL_OPENCV"],
+        ),
+        json_case(
+            "lens that folds over the image",
+            "{\"camera_angle_x\": 0.7, \"k1\": -5, \"frames\": [{\"file_path\": \"train/a\", \"transform_matrix\": [[1,0,0,0],[0,1,0,0],[0,0,1,1],[0,0,0,1]]}]}",
+            &["transforms_train.json", "frame 0", "field 'k1'", "cannot be inverted"],
+        ),
+        json_case(
+            "fisheye with tangential terms",
+            "{\"camera_angle_x\": 0.7, \"camera_model\": \"OPENCV_FISHEYE\", \"p1\": 0.01, \"frames\": [{\"file_path\": \"train/a\", \"transform_matrix\": [[1,0,0,0],[0,1,0,0],[0,0,1,1],[0,0,0,1]]}]}",
+            &["transforms_train.json", "frame 0", "field 'p1'", "tangential"],
+        ),
+        json_case(
+            "distortion coefficient out of range",
+            "{\"camera_angle_x\": 0.7, \"k2\": 40, \"frames\": [{\"file_path\": \"train/a\", \"transform_matrix\": [[1,0,0,0],[0,1,0,0],[0,0,1,1],[0,0,0,1]]}]}",
+            &["transforms_train.json", "field 'k2'", "40"],
+        ),
         image_case("corrupt image", || good_png()[..40].to_vec(), &["a.png", "frame 0"]),
         image_case("not an image", || b"this is no picture".to_vec(), &["a.png", "frame 0", "not an image"]),
         image_case("decompression bomb", || png_header(100_000, 100_000), &["a.png", "100000x100000"]),
@@ -206,6 +226,38 @@ fn catalogue() -> Vec<Case> {
             },
             TRAIN,
             &["a.png", "frame 0", "4x4", "w=8"],
+        ),
+        case(
+            "colmap: unknown camera model",
+            |d| {
+                std::fs::create_dir_all(d.join("sparse")).unwrap();
+                std::fs::create_dir_all(d.join("images")).unwrap();
+                std::fs::write(d.join("sparse/cameras.txt"), "# c\n1 FULL_OPENCV 4 4 1 1 2 2 0 0 0 0 0 0 0 0\n").unwrap();
+                std::fs::write(d.join("sparse/images.txt"), "1 1 0 0 0 0 0 1 1 a.png\n\n").unwrap();
+            },
+            "import colmap --model {d}/sparse --images {d}/images --out {d}/out",
+            &["cameras.txt", "line 2", "FULL_OPENCV"],
+        ),
+        case(
+            "colmap: image missing",
+            |d| {
+                std::fs::create_dir_all(d.join("sparse")).unwrap();
+                std::fs::create_dir_all(d.join("images")).unwrap();
+                std::fs::write(d.join("sparse/cameras.txt"), "1 PINHOLE 4 4 3 3 2 2\n").unwrap();
+                std::fs::write(d.join("sparse/images.txt"), "1 1 0 0 0 0 0 1 1 a.png\n\n").unwrap();
+            },
+            "import colmap --model {d}/sparse --images {d}/images --out {d}/out",
+            &["a.png", "is not in"],
+        ),
+        case(
+            "colmap: truncated binary model",
+            |d| {
+                std::fs::create_dir_all(d.join("sparse")).unwrap();
+                std::fs::create_dir_all(d.join("images")).unwrap();
+                std::fs::write(d.join("sparse/cameras.bin"), [1u8, 0, 0, 0, 0, 0, 0, 0, 1, 0]).unwrap();
+            },
+            "import colmap --model {d}/sparse --images {d}/images --out {d}/out",
+            &["cameras.bin", "truncated"],
         ),
         case("missing data directory", |_| {}, TRAIN, &["data", "not found"]),
         case(

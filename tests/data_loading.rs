@@ -377,3 +377,34 @@ fn crc32(data: &[u8]) -> u32 {
     }
     !c
 }
+
+/// Scale: `metres_per_unit` multiplies the camera positions and the box; without an `aabb`,
+/// Instant-NGP's `scale`/`offset` give its unit cube in the json's frame (axes permuted as
+/// Instant-NGP does: its cube's x, y, z are the json's y, z, x), `aabb_scale` enlarging it.
+#[test]
+fn metres_per_unit_and_instant_ngp_scale_offset_give_the_frame_and_box() {
+    let dir = scratch("scale");
+    png_rgb8(&dir.join("train/a.png"), 4, 4, |_, _| [1, 2, 3]);
+    let frames = json!([{"file_path": "train/a", "transform_matrix": pose(2.0)}]);
+    let load = |v: serde_json::Value| {
+        write_json(&dir, "transforms_train.json", &v);
+        Dataset::load(&dir, "train", &LoadOptions::default()).unwrap()
+    };
+    let d = load(json!({"camera_angle_x": 0.7, "metres_per_unit": 0.5,
+        "aabb": [[-2, -2, -2], [2, 2, 2]], "frames": frames}));
+    assert_eq!(d.views[0].pose.translation.z, 1.0);
+    assert_eq!((d.aabb.min.x, d.aabb.max.z), (-1.0, 1.0));
+    let d = load(json!({"camera_angle_x": 0.7, "scale": 0.5, "offset": [0.5, 0.6, 0.7], "frames": frames}));
+    assert_eq!(d.aabb_source, AabbSource::File);
+    let (min, max) = (d.aabb.min.to_array(), d.aabb.max.to_array());
+    let want_min = [-1.4f32, -1.0, -1.2];
+    let want_max = [0.6f32, 1.0, 0.8];
+    for a in 0..3 {
+        assert!((min[a] - want_min[a]).abs() < 1e-6 && (max[a] - want_max[a]).abs() < 1e-6, "{min:?} {max:?}");
+    }
+    let d = load(json!({"camera_angle_x": 0.7, "scale": 0.5, "aabb_scale": 4, "frames": frames}));
+    assert!((d.aabb.min.x + 4.0).abs() < 1e-6 && (d.aabb.max.y - 4.0).abs() < 1e-6, "{:?}", d.aabb);
+    write_json(&dir, "transforms_train.json", &json!({"camera_angle_x": 0.7, "metres_per_unit": -1, "frames": frames}));
+    let e = Dataset::load(&dir, "train", &LoadOptions::default()).unwrap_err().to_string();
+    assert!(e.contains("field 'metres_per_unit'") && !e.contains('\n'), "{e}");
+}

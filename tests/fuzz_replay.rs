@@ -51,6 +51,24 @@ fn transforms_json_corpus_never_panics() {
 }
 
 #[test]
+fn colmap_model_corpus_never_panics() {
+    use residual_nerf::data::colmap;
+    replay("colmap_model", |data| {
+        let lines = [
+            colmap::cameras_txt(data).err(),
+            colmap::images_txt(data).err(),
+            colmap::points_txt(data).err(),
+            colmap::cameras_bin(data).err(),
+            colmap::images_bin(data).err(),
+            colmap::points_bin(data).err(),
+        ];
+        for line in lines.into_iter().flatten() {
+            assert!(!line.contains('\n'), "error is not one line: {line}");
+        }
+    });
+}
+
+#[test]
 fn image_corpus_never_panics() {
     use residual_nerf::data::images;
     replay("image_decode", |data| {

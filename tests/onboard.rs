@@ -144,6 +144,11 @@ fn wrong_buffers_and_cameras_are_refused_without_a_panic() {
     bad(e, "rgb buffer");
     let bad_k = Intrinsics { fx: 0.0, ..k };
     bad(cam.depth(&bad_k, &pose, req, &mut z).unwrap_err(), "intrinsics");
+    // A lens that folds back on itself over the image is refused; a mild one renders.
+    let fold = residual_nerf::geometry::Distortion::Radial { k: [-2.0, 0.0, 0.0, 0.0], p: [0.0; 2] };
+    bad(cam.depth(&Intrinsics { distortion: fold, ..k }, &pose, req, &mut z).unwrap_err(), "cannot be inverted");
+    let mild = residual_nerf::geometry::Distortion::Radial { k: [-0.05, 0.0, 0.0, 0.0], p: [0.0; 2] };
+    cam.depth(&Intrinsics { distortion: mild, ..k }, &pose, req, &mut z).unwrap();
     let bad_pose = Pose { translation: Vec3::NAN, ..pose };
     bad(cam.depth(&k, &bad_pose, req, &mut z).unwrap_err(), "pose");
     bad(DepthRenderer::new(LoadedModel::Nerf(Box::new(trained()))).with_threads(0).err().unwrap(), "threads");

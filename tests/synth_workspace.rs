@@ -80,3 +80,32 @@ fn the_tall_glass_rises_above_the_sphere() {
         assert!(tall.crops[v][1] < sphere.crops[v][1], "view {v}: {:?} vs {:?}", tall.crops[v], sphere.crops[v]);
     }
 }
+
+/// A capture through a lens (OpenCV's radial-tangential model, and a fisheye) written in the
+/// dataset layout loads back with the same lens and the same rays; the lens bends the rays
+/// (an image corner's ray differs from the pinhole's).
+#[test]
+fn a_distorted_capture_loads_back_with_its_lens() {
+    use residual_nerf::data::workspace::Capture;
+    use residual_nerf::geometry::{pixel_ray, Distortion};
+    for (name, d) in [
+        ("radial", Distortion::Radial { k: [-0.12, 0.03, 0.0, 0.0], p: [0.002, -0.001] }),
+        ("fisheye", Distortion::Fisheye { k: [0.05, -0.01, 0.0, 0.0] }),
+    ] {
+        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("synth_workspace_lens").join(name);
+        let _ = std::fs::remove_dir_all(&dir);
+        let capture = Capture { distortion: d, ..Default::default() };
+        let scene = workspace::workspace_capture(24, 3, 0.3, Glass::Sphere, &capture);
+        scene.write_split(&dir, "train").unwrap();
+        let loaded = Dataset::load(&dir, "train", &LoadOptions::default()).unwrap();
+        for (a, b) in loaded.views.iter().zip(&scene.views) {
+            assert_eq!(a.intrinsics, b.intrinsics, "{name}");
+            for (i, j) in [(0, 0), (23, 11), (12, 12)] {
+                assert_eq!(pixel_ray(&a.intrinsics, &a.pose, i, j), pixel_ray(&b.intrinsics, &b.pose, i, j));
+            }
+            let pin = residual_nerf::geometry::Intrinsics { distortion: Distortion::None, ..a.intrinsics };
+            let bend = pixel_ray(&a.intrinsics, &a.pose, 0, 0).dir.angle_between(pixel_ray(&pin, &a.pose, 0, 0).dir);
+            assert!(bend > 1e-3, "{name}: the corner ray is not bent ({bend} rad)");
+        }
+    }
+}

@@ -55,6 +55,24 @@ impl From<crate::error::Error> for Failure {
 pub fn run(command: Command) -> Result<(), Failure> {
     match command {
         Command::Help => println!("{}", crate::cli::USAGE),
+        Command::ImportColmap(options) => {
+            let r = crate::data::colmap::import(&options)?;
+            for (path, n) in &r.written {
+                println!("rnerf import: wrote {} ({n} frames)", path.display());
+            }
+            match &options.known_distance {
+                Some((a, b, m)) => println!(
+                    "rnerf import: scale from --known-distance ({a} to {b} is {m} m): 1 COLMAP unit = {:.6} m (metres_per_unit)",
+                    r.metres_per_unit
+                ),
+                None => eprintln!(
+                    "rnerf: warning: no --known-distance: COLMAP's unit is taken as a metre, so threshold depth (sigma per metre) and depth are in COLMAP's arbitrary unit"
+                ),
+            }
+            if r.aabb.is_none() {
+                eprintln!("rnerf: warning: the model has too few 3D points for a scene box; the loader derives one from the cameras");
+            }
+        }
         Command::Train(args) => {
             set_threads(args.threads)?;
             train::run(&args)?;

@@ -13,7 +13,7 @@ use crate::io::{
 };
 use crate::render::Aabb;
 use crate::simd::Isa;
-use crate::train::prior::{residual_start, scene_prior, Prior};
+use crate::train::prior::{residual_start, scene_prior, ColourCorrection, Prior};
 use crate::train::trainer::{TrainConfig, Trainer};
 use signal_hook::consts::{SIGINT, SIGTERM};
 use std::fmt::Write as _;
@@ -114,6 +114,13 @@ fn describe_data(data: &Dataset) {
         data.aabb.min.to_array(),
         data.aabb.max.to_array()
     );
+    let lens: Vec<&str> = data.views.iter().map(|v| v.intrinsics.distortion.model_name()).collect();
+    let distorted = lens.iter().filter(|&&m| m != "PINHOLE").count();
+    let scale = match data.metres_per_unit {
+        1.0 => "the json's unit is a metre".to_string(),
+        m => format!("1 json unit = {m} m (metres_per_unit), positions converted to metres"),
+    };
+    eprintln!("rnerf train: scale: {scale}; lens: {distorted} of {} views distorted", lens.len());
 }
 
 fn fresh(a: &TrainArgs) -> Result<(), Failure> {
@@ -148,7 +155,13 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
                 "rnerf train: residual model over {} ({kind:?}, Mixnet encoding {mixnet:?}, background hints {hints:?})",
                 bg_path.display()
             );
-            let pcfg = crate::app::compare::prior_config(a.beta, a.region_floor, a.focus_share, a.region_vote);
+            let pcfg = crate::app::compare::prior_config(
+                a.beta,
+                a.region_floor,
+                a.focus_share,
+                a.region_vote,
+                a.exposure_correction,
+            );
             let prior = (hints != Prior::NONE).then(|| {
                 let bg_views = match &a.background_data {
                     Some(dir) => {
@@ -171,6 +184,21 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
                 Ok::<_, String>(p)
             });
             let prior = prior.transpose()?;
+            let mut corrections = None;
+            if let Some(p) = prior.as_ref().filter(|p| p.corrected_count() > 0) {
+                data.views = p.corrected_views(&data.views);
+                corrections = Some(corrections_json(&p.corrections));
+                let c = p.corrections.iter().filter(|c| **c != ColourCorrection::IDENTITY);
+                let g = c.flat_map(|c| c.gain).fold((f32::MAX, f32::MIN), |(lo, hi), v| (lo.min(v), hi.max(v)));
+                eprintln!(
+                    "rnerf train: exposure: {} of {} scene images corrected to the background's exposure and white balance \
+                     (gains {:.3}..{:.3})",
+                    p.corrected_count(),
+                    data.views.len(),
+                    g.0,
+                    g.1
+                );
+            }
             let config = ResidualConfig { residual: field, kind, mixnet };
             let start = residual_start(isa, &bg, config, hints, prior.as_ref(), &cfg, &pcfg);
             cfg.focus = start.focus;
@@ -179,7 +207,11 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
                 eprintln!("rnerf train: {l}");
             }
             let model = start.field;
-            let residual = ResidualRun { background_file: bg_path.display().to_string(), prior: format!("{hints:?}") };
+            let residual = ResidualRun {
+                background_file: bg_path.display().to_string(),
+                prior: format!("{hints:?}"),
+                corrections,
+            };
             let extra = run_metadata(&cfg, a, Some(&residual));
             let trainer = Trainer::starting_at(isa, &model, &data.views, &cfg, start.params, start.occupancy);
             drive(a, &model, trainer, &extra)
@@ -197,11 +229,40 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
 struct ResidualRun {
     background_file: String,
     prior: String,
+    /// The scene images' colour corrections as JSON (`[[gain×3], …]` per view), when
+    /// any was applied: a resumed run applies them again before checking its data.
+    corrections: Option<String>,
 }
 
 /// Metadata keys of [`ResidualRun`].
 const BACKGROUND_FILE: &str = "background_file";
 const TRAIN_PRIOR: &str = "train_prior";
+const COLOUR_CORRECTIONS: &str = "train_colour_corrections";
+
+fn corrections_json(c: &[ColourCorrection]) -> String {
+    let rows: Vec<[f32; 3]> = c.iter().map(|c| c.gain).collect();
+    serde_json::to_string(&rows).expect("plain json")
+}
+
+/// The scene views through the corrections `json` records (the inverse of [`corrections_json`]).
+fn apply_corrections(views: &mut [crate::data::View], json: &str) -> Result<(), String> {
+    let rows: Vec<[f32; 3]> = serde_json::from_str(json)
+        .map_err(|e| format!("metadata '{COLOUR_CORRECTIONS}' is not a list of corrections: {e}"))?;
+    if rows.len() != views.len() {
+        return Err(format!(
+            "metadata '{COLOUR_CORRECTIONS}' holds {} corrections for {} views",
+            rows.len(),
+            views.len()
+        ));
+    }
+    for (v, r) in views.iter_mut().zip(rows) {
+        let c = ColourCorrection { gain: r };
+        if c != ColourCorrection::IDENTITY {
+            v.rgb.iter_mut().for_each(|x| *x = c.apply(*x));
+        }
+    }
+    Ok(())
+}
 
 /// The metadata of a model file `rnerf train` writes (and of its checkpoints): the run's
 /// settings, data and, for a residual model, its background and hints. One builder for fresh
@@ -222,6 +283,9 @@ fn run_metadata(cfg: &TrainConfig, a: &TrainArgs, residual: Option<&ResidualRun>
     if let Some(r) = residual {
         m.push((BACKGROUND_FILE, r.background_file.clone()));
         m.push((TRAIN_PRIOR, r.prior.clone()));
+        if let Some(c) = &r.corrections {
+            m.push((COLOUR_CORRECTIONS, c.clone()));
+        }
     }
     m
 }
@@ -248,6 +312,9 @@ fn resume(a: &TrainArgs, path: &Path) -> Result<(), Failure> {
     };
     data.aabb = aabb;
     describe_data(&data);
+    if let Some(json) = checkpoint.metadata.get(COLOUR_CORRECTIONS) {
+        apply_corrections(&mut data.views, json).map_err(|e| format!("--resume: {}: {e}", path.display()))?;
+    }
     if views_fingerprint(&data.views) != checkpoint.fingerprint {
         return Err(format!(
             "{}: split '{}' is not the data the checkpoint {} was trained on (its views, poses or pixels differ)",
@@ -260,7 +327,11 @@ fn resume(a: &TrainArgs, path: &Path) -> Result<(), Failure> {
     let isa = Isa::detect();
     let cfg = checkpoint.config.clone();
     let residual = match (checkpoint.metadata.get(BACKGROUND_FILE), checkpoint.metadata.get(TRAIN_PRIOR)) {
-        (Some(b), Some(p)) => Some(ResidualRun { background_file: b.clone(), prior: p.clone() }),
+        (Some(b), Some(p)) => Some(ResidualRun {
+            background_file: b.clone(),
+            prior: p.clone(),
+            corrections: checkpoint.metadata.get(COLOUR_CORRECTIONS).cloned(),
+        }),
         _ => None,
     };
     let mut extra = run_metadata(&cfg, a, residual.as_ref());
@@ -384,4 +455,31 @@ fn drive<M: ModelFile>(
     }
     eprintln!("rnerf train: wrote {} ({:.1} s)", a.out.display(), progress.seconds());
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A resumed run applies the corrections its checkpoint records: the same images as the
+    /// fresh run trained on, so the views' fingerprint matches.
+    #[test]
+    fn recorded_colour_corrections_give_the_same_views_back() {
+        let scene = crate::data::workspace::workspace(8, 3, 0.0, true);
+        let c = [
+            ColourCorrection { gain: [0.8, 1.0, 1.2] },
+            ColourCorrection::IDENTITY,
+            ColourCorrection { gain: [1.1; 3] },
+        ];
+        let fresh: Vec<crate::data::View> = scene
+            .views
+            .iter()
+            .zip(&c)
+            .map(|(v, c)| crate::data::View { rgb: v.rgb.iter().map(|&x| c.apply(x)).collect(), ..v.clone() })
+            .collect();
+        let mut resumed = scene.views.clone();
+        apply_corrections(&mut resumed, &corrections_json(&c)).unwrap();
+        assert_eq!(views_fingerprint(&resumed), views_fingerprint(&fresh));
+        assert!(apply_corrections(&mut resumed, "[[1,1,1]]").unwrap_err().contains("1 corrections for 3 views"));
+    }
 }

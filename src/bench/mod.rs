@@ -52,7 +52,7 @@ impl TrainedView {
         let view = test.views.first().ok_or_else(|| format!("{}: the test split has no views", data.display()))?;
         let (k, s) = (view.intrinsics, 200.0 / view.intrinsics.width as f32);
         let height = ((k.height as f32 * s).round() as u32).max(1);
-        let intrinsics = Intrinsics { width: 200, height, fx: k.fx * s, fy: k.fy * s, cx: k.cx * s, cy: k.cy * s };
+        let intrinsics = Intrinsics { width: 200, height, fx: k.fx * s, fy: k.fy * s, cx: k.cx * s, cy: k.cy * s, ..k };
         Ok(TrainedView { model: loaded, intrinsics, pose: view.pose })
     }
 

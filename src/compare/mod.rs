@@ -455,7 +455,10 @@ pub fn run_scene(
                         eprintln!("{name}: {l}");
                     }
                     let init = Some((start.params, start.occupancy));
-                    run_method(isa, name, method, &start.field, init, train, test, &mcfg, log)
+                    // In the background's appearance when the prior corrected the exposure.
+                    let corrected = p.filter(|p| p.corrected_count() > 0).map(|p| p.corrected_views(train));
+                    let views = corrected.as_deref().unwrap_or(train);
+                    run_method(isa, name, method, &start.field, init, views, test, &mcfg, log)
                 }
             }
             .map_err(|e| format!("{name}: {}: {e}", method.name()))

@@ -4,7 +4,7 @@
 
 use super::error::{DataError, DataReport};
 use super::images::{decode_depth_exr, decode_mask, decode_rgb, dimensions};
-use super::transforms::{parse_transforms, DepthKind, FrameSpec, FrameType, Transforms};
+use super::transforms::{parse_transforms, DepthKind, FrameSpec, FrameType, Transforms, COEFFICIENT_KEYS};
 use crate::data::View;
 use crate::geometry::{pixel_ray, Aabb, Intrinsics};
 use crate::io::read_limited;
@@ -78,6 +78,8 @@ pub struct Dataset {
     pub aabb_source: AabbSource,
     /// What the depth files measured (in memory depth is always z).
     pub depth_kind: DepthKind,
+    /// Metres per json unit (`metres_per_unit`; poses and the box are already in metres).
+    pub metres_per_unit: f32,
     /// Whether any image had alpha (composited over [`LoadOptions::background`]).
     pub had_alpha: bool,
     /// One-line notes about input that was accepted but may not be what the author meant
@@ -162,7 +164,17 @@ impl Dataset {
             None => (aabb_from_cameras(&views), AabbSource::Cameras),
         };
         let warnings = mixed_sizes_warning(&json, &specs, &views).into_iter().collect();
-        Ok(Dataset { json, views, frames, aabb, aabb_source, depth_kind: t.depth_kind, had_alpha, warnings })
+        Ok(Dataset {
+            json,
+            views,
+            frames,
+            aabb,
+            aabb_source,
+            depth_kind: t.depth_kind,
+            metres_per_unit: t.metres_per_unit,
+            had_alpha,
+            warnings,
+        })
     }
 }
 
@@ -208,7 +220,12 @@ fn load_frame(
         )));
     }
     let (fx, fy, cx, cy) = f.camera.resolve(w, h).map_err(|m| fail("camera_angle_x", m))?;
-    let intrinsics = Intrinsics { width: w, height: h, fx, fy, cx, cy };
+    let distortion = f.camera.distortion().map_err(|(name, m)| fail(name, m))?;
+    // Which key to blame when the model cannot be inverted over this image: the first
+    // coefficient the json gives.
+    let blame = (0..6).find(|&i| f.camera.coefficients[i].is_some()).map_or("camera_model", |i| COEFFICIENT_KEYS[i]);
+    distortion.check(w, h, fx, fy, cx, cy).map_err(|m| fail(blame, m))?;
+    let intrinsics = Intrinsics { width: w, height: h, fx, fy, cx, cy, distortion };
     let rgb = decode_rgb(&bytes, opts.background).map_err(on_image)?;
     let mut info = FrameInfo {
         index: f.index,

@@ -6,7 +6,9 @@
 //! - [`dataset`]: a split → posed [`View`]s plus ground truth.
 //! - [`error`]: errors naming the file, frame and field.
 //! - [`workspace`]: the synthetic robot workspace with a glass object (background and scene sets).
+//! - [`colmap`]: COLMAP sparse models in and out (`rnerf import colmap`).
 
+pub mod colmap;
 pub mod dataset;
 pub mod error;
 pub mod images;

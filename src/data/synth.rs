@@ -57,13 +57,19 @@ impl SynthScene {
             }
             frames.push(frame);
         }
-        let json = serde_json::json!({
+        let mut json = serde_json::json!({
             "camera_angle_x": 2.0 * (0.5 * k.width as f32 / k.fx).atan(),
             "fl_x": k.fx, "fl_y": k.fy, "cx": k.cx, "cy": k.cy, "w": k.width, "h": k.height,
             "aabb": [self.aabb.min.to_array(), self.aabb.max.to_array()],
             "depth_unit": "m", "depth_kind": "z",
             "frames": frames,
         });
+        if !k.distortion.is_none() {
+            json["camera_model"] = k.distortion.model_name().into();
+            for (name, c) in k.distortion.coefficients() {
+                json[name] = c.into();
+            }
+        }
         let text = serde_json::to_string_pretty(&json).expect("plain json");
         crate::io::write_atomic(&dir.join(format!("transforms_{split}.json")), text.as_bytes())
     }

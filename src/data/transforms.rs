@@ -5,11 +5,20 @@
 //!
 //! Intrinsics: `fl_x` (and `fl_y`, else `fl_x`), else `camera_angle_x` (and `camera_angle_y`
 //! for `fl_y`, else square pixels); `cx`, `cy` default to the image centre; `w`, `h` are checked
-//! against the image when given. Every one of these keys may also appear per frame, where it
-//! overrides the top level.
+//! against the image when given. Lens distortion: `camera_model` (`PINHOLE`, `OPENCV`,
+//! `OPENCV_FISHEYE`; Instant-NGP's `is_fisheye: true` means `OPENCV_FISHEYE`) with `k1 k2 k3 k4
+//! p1 p2` (missing ones are 0; coefficients without a `camera_model` mean `OPENCV`, as in
+//! Instant-NGP). Every one of these keys may also appear per frame, where it overrides the top
+//! level.
+//!
+//! Scale: the json's units are taken as metres unless a top-level `metres_per_unit` says
+//! otherwise (camera positions and the `aabb` are multiplied by it at load, so threshold
+//! density and depth are per metre). Instant-NGP's `scale` and `offset` (its unit cube in the
+//! json's frame, axes permuted as Instant-NGP does) give the scene box when there is no `aabb`,
+//! enlarged by `aabb_scale` about the cube's centre.
 
 use super::error::DataError;
-use crate::geometry::{Aabb, Pose};
+use crate::geometry::{Aabb, Distortion, Pose};
 use glam::{Mat3, Vec3};
 use serde_json::{Map, Value};
 use std::path::{Path, PathBuf};
@@ -49,7 +58,25 @@ pub struct CameraSpec {
     pub w: Option<u32>,
     /// `h` (pixels).
     pub h: Option<u32>,
+    /// `camera_model` (or `is_fisheye`).
+    pub model: Option<LensModel>,
+    /// `k1 k2 k3 k4 p1 p2`, each when given.
+    pub coefficients: [Option<f32>; 6],
 }
+
+/// The lens model a json names.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LensModel {
+    /// `PINHOLE` (also `SIMPLE_PINHOLE`).
+    Pinhole,
+    /// `OPENCV`.
+    OpenCv,
+    /// `OPENCV_FISHEYE`.
+    Fisheye,
+}
+
+/// The distortion coefficients' json keys, in [`CameraSpec::coefficients`]' order.
+pub const COEFFICIENT_KEYS: [&str; 6] = ["k1", "k2", "k3", "k4", "p1", "p2"];
 
 impl CameraSpec {
     /// `self` with every key `over` sets replaced.
@@ -63,6 +90,26 @@ impl CameraSpec {
             cy: over.cy.or(self.cy),
             w: over.w.or(self.w),
             h: over.h.or(self.h),
+            model: over.model.or(self.model),
+            coefficients: std::array::from_fn(|i| over.coefficients[i].or(self.coefficients[i])),
+        }
+    }
+
+    /// The lens distortion these keys describe, or the key at fault and why.
+    pub fn distortion(&self) -> Result<Distortion, (&'static str, String)> {
+        let c = self.coefficients.map(|c| c.unwrap_or(0.0));
+        let any = self.coefficients.iter().any(Option::is_some);
+        match self.model {
+            Some(LensModel::Pinhole) if c.iter().any(|&v| v != 0.0) => {
+                Err(("camera_model", "PINHOLE with distortion coefficients (use OPENCV or OPENCV_FISHEYE)".into()))
+            }
+            Some(LensModel::Pinhole) => Ok(Distortion::None),
+            None if !any => Ok(Distortion::None),
+            None | Some(LensModel::OpenCv) => Ok(Distortion::Radial { k: [c[0], c[1], c[2], c[3]], p: [c[4], c[5]] }),
+            Some(LensModel::Fisheye) if c[4] != 0.0 || c[5] != 0.0 => {
+                Err(("p1", "OPENCV_FISHEYE has no tangential terms (p1, p2)".into()))
+            }
+            Some(LensModel::Fisheye) => Ok(Distortion::Fisheye { k: [c[0], c[1], c[2], c[3]] }),
         }
     }
 
@@ -116,6 +163,9 @@ pub struct Transforms {
     pub depth_kind: DepthKind,
     /// Metres per depth-file unit from `depth_unit` (`m` → 1, `mm` → 0.001; default 1).
     pub depth_scale: f32,
+    /// Metres per json unit (`metres_per_unit`, default 1), already applied to the frames'
+    /// camera positions and to `aabb`.
+    pub metres_per_unit: f32,
 }
 
 /// Parses `bytes`, the contents of the json at `path` (used for error messages and to resolve
@@ -131,7 +181,23 @@ pub fn parse_transforms(bytes: &[u8], path: &Path) -> Result<Transforms, Vec<Dat
     let dir = path.parent().unwrap_or(Path::new("."));
     let mut errors = Vec::new();
     let top_camera = camera_spec(root, path, None, &mut errors);
-    let aabb = root.get("aabb").and_then(|v| parse_aabb(v).map_err(|m| errors.push(field(path, None, "aabb", m))).ok());
+    let metres_per_unit = match root.get("metres_per_unit").map(number) {
+        None => 1.0,
+        Some(Ok(x)) if x > 0.0 && x <= 1e6 => x as f32,
+        Some(Ok(x)) => {
+            errors.push(field(path, None, "metres_per_unit", format!("{x} is outside (0, 1e6]")));
+            1.0
+        }
+        Some(Err(m)) => {
+            errors.push(field(path, None, "metres_per_unit", m));
+            1.0
+        }
+    };
+    let aabb = match root.get("aabb") {
+        Some(v) => parse_aabb(v).map_err(|m| errors.push(field(path, None, "aabb", m))).ok(),
+        None => ngp_aabb(root).map_err(|(name, m)| errors.push(field(path, None, name, m))).ok().flatten(),
+    }
+    .map(|b| Aabb { min: b.min * metres_per_unit, max: b.max * metres_per_unit });
     let depth_kind = match root.get("depth_kind").map(|v| v.as_str()) {
         None | Some(Some("z")) => DepthKind::Z,
         Some(Some("range")) => DepthKind::Range,
@@ -158,7 +224,15 @@ pub fn parse_transforms(bytes: &[u8], path: &Path) -> Result<Transforms, Vec<Dat
             Vec::new()
         }
         Some(Value::Array(a)) => {
-            a.iter().enumerate().filter_map(|(i, f)| parse_frame(f, i, dir, path, top_camera, &mut errors)).collect()
+            let mut frames: Vec<FrameSpec> = a
+                .iter()
+                .enumerate()
+                .filter_map(|(i, f)| parse_frame(f, i, dir, path, top_camera, &mut errors))
+                .collect();
+            for f in &mut frames {
+                f.pose.translation *= metres_per_unit;
+            }
+            frames
         }
         Some(_) => {
             errors.push(field(path, None, "frames", "expected an array"));
@@ -166,7 +240,7 @@ pub fn parse_transforms(bytes: &[u8], path: &Path) -> Result<Transforms, Vec<Dat
         }
     };
     if errors.is_empty() {
-        Ok(Transforms { frames, aabb, depth_kind, depth_scale })
+        Ok(Transforms { frames, aabb, depth_kind, depth_scale, metres_per_unit })
     } else {
         Err(errors)
     }
@@ -214,7 +288,15 @@ fn camera_spec(obj: &Map<String, Value>, path: &Path, frame: Option<usize>, erro
     };
     let pi = std::f64::consts::PI;
     let side = MAX_SIDE as f64 + 1.0;
-    CameraSpec {
+    // Distortion coefficients beyond these are not a lens (real ones are within ±2 for k, ±0.1
+    // for p); whether a model can be inverted over the image is checked once its size is known.
+    let coefficients = COEFFICIENT_KEYS.map(|name| {
+        let bound = if name.starts_with('p') { 1.0 } else { 10.0 };
+        get(name, -bound, bound).map(|x| x as f32)
+    });
+    let spec = CameraSpec {
+        model: None,
+        coefficients,
         angle_x: get("camera_angle_x", 0.0, pi).map(|x| x as f32),
         angle_y: get("camera_angle_y", 0.0, pi).map(|x| x as f32),
         fl_x: get("fl_x", 0.0, 1e7).map(|x| x as f32),
@@ -223,7 +305,77 @@ fn camera_spec(obj: &Map<String, Value>, path: &Path, frame: Option<usize>, erro
         cy: get("cy", -1e6, 1e6).map(|x| x as f32),
         w: get("w", 0.5, side).map(|x| x.round() as u32),
         h: get("h", 0.5, side).map(|x| x.round() as u32),
+    };
+    let model = match (obj.get("camera_model"), obj.get("is_fisheye")) {
+        (Some(v), _) => match v.as_str() {
+            Some("PINHOLE" | "SIMPLE_PINHOLE") => Some(LensModel::Pinhole),
+            Some("OPENCV") => Some(LensModel::OpenCv),
+            Some("OPENCV_FISHEYE") => Some(LensModel::Fisheye),
+            _ => {
+                errors.push(field(
+                    path,
+                    frame,
+                    "camera_model",
+                    format!("expected \"PINHOLE\", \"OPENCV\" or \"OPENCV_FISHEYE\", found {v}"),
+                ));
+                None
+            }
+        },
+        (None, Some(Value::Bool(true))) => Some(LensModel::Fisheye),
+        (None, Some(Value::Bool(false))) => None,
+        (None, Some(v)) => {
+            errors.push(field(path, frame, "is_fisheye", format!("expected a boolean, found {}", kind(v))));
+            None
+        }
+        (None, None) => None,
+    };
+    CameraSpec { model, ..spec }
+}
+
+/// Instant-NGP's unit cube in the json's frame, from `scale` and `offset` (and `aabb_scale`),
+/// when either is given: Instant-NGP maps a camera position `p` to `(p.y, p.z, p.x)·scale +
+/// offset` and renders the cube `[0, 1]³` enlarged by `aabb_scale` about its centre.
+fn ngp_aabb(root: &Map<String, Value>) -> Result<Option<Aabb>, (&'static str, String)> {
+    if root.get("scale").is_none() && root.get("offset").is_none() {
+        return Ok(None);
     }
+    let scale = match root.get("scale").map(number) {
+        None => 0.33, // Instant-NGP's default
+        Some(Ok(s)) if s > 0.0 && s < 1e6 => s,
+        Some(Ok(s)) => return Err(("scale", format!("{s} is outside (0, 1e6)"))),
+        Some(Err(m)) => return Err(("scale", m)),
+    };
+    let offset = match root.get("offset") {
+        None => [0.5; 3],
+        Some(v) => {
+            let a = v.as_array().filter(|a| a.len() == 3).ok_or(("offset", "expected [x, y, z]".to_string()))?;
+            let mut o = [0.0; 3];
+            for (o, x) in o.iter_mut().zip(a) {
+                *o = number(x).map_err(|m| ("offset", m))?;
+            }
+            o
+        }
+    };
+    let aabb_scale = match root.get("aabb_scale").map(number) {
+        None => 1.0,
+        Some(Ok(s)) if (1.0..=128.0).contains(&s) => s,
+        Some(Ok(s)) => return Err(("aabb_scale", format!("{s} is outside [1, 128]"))),
+        Some(Err(m)) => return Err(("aabb_scale", m)),
+    };
+    // Cube axis a of Instant-NGP is json axis (a + 1) mod 3.
+    let (lo, hi) = (0.5 - 0.5 * aabb_scale, 0.5 + 0.5 * aabb_scale);
+    let mut min = [0f32; 3];
+    let mut max = [0f32; 3];
+    for a in 0..3 {
+        let j = (a + 1) % 3;
+        min[j] = ((lo - offset[a]) / scale) as f32;
+        max[j] = ((hi - offset[a]) / scale) as f32;
+    }
+    let b = Aabb { min: Vec3::from(min), max: Vec3::from(max) };
+    if !(b.size().is_finite() && b.max.abs().max(b.min.abs()).max_element() <= MAX_TRANSLATION) {
+        return Err(("scale", format!("the box {:?}..{:?} is absurd", b.min, b.max)));
+    }
+    Ok(Some(b))
 }
 
 fn parse_aabb(v: &Value) -> Result<Aabb, String> {

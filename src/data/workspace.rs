@@ -14,7 +14,7 @@
 use super::synth::SynthScene;
 use crate::data::View;
 use crate::geometry::Pose;
-use crate::geometry::{pixel_ray, Aabb, Intrinsics, Ray};
+use crate::geometry::{pixel_ray, Aabb, Distortion, Intrinsics, Ray};
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -307,7 +307,33 @@ pub fn workspace(size: u32, n_views: usize, phase: f32, glass: bool) -> SynthSce
 
 /// [`workspace`] with any [`Glass`] object.
 pub fn workspace_with(size: u32, n_views: usize, phase: f32, glass: Glass) -> SynthScene {
-    let k = Intrinsics::from_fov_x(size, size, 50f32.to_radians());
+    workspace_capture(size, n_views, phase, glass, &Capture::default())
+}
+
+/// How a synthesised capture departs from a perfect pinhole camera at exact poses (the trials of
+/// real captures: a lens, an exposure change, poses from a robot's kinematics).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Capture {
+    /// The lens the images are rendered through (and the views' intrinsics carry).
+    pub distortion: Distortion,
+    /// Per-channel gain applied to the rendered colours, then clamped to [0, 1] as a sensor
+    /// saturates (an exposure and white-balance change; `[1; 3]` for none).
+    pub gain: [f32; 3],
+    /// Pose noise: the views carry poses off the true ones by a random translation of this
+    /// length (metres) and a rotation of this angle (degrees) about a random axis, drawn
+    /// from the seed (the images are rendered at the true poses).
+    pub pose_noise: Option<(f32, f32, u64)>,
+}
+
+impl Default for Capture {
+    fn default() -> Self {
+        Capture { distortion: Distortion::None, gain: [1.0; 3], pose_noise: None }
+    }
+}
+
+/// [`workspace_with`] through a [`Capture`].
+pub fn workspace_capture(size: u32, n_views: usize, phase: f32, glass: Glass, capture: &Capture) -> SynthScene {
+    let k = Intrinsics { distortion: capture.distortion, ..Intrinsics::from_fov_x(size, size, 50f32.to_radians()) };
     let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
     let rendered: Vec<(View, Vec<f32>, Vec<bool>)> = (0..n_views)
         .into_par_iter()
@@ -325,11 +351,20 @@ pub fn workspace_with(size: u32, n_views: usize, phase: f32, glass: Glass) -> Sy
                 for i in 0..size {
                     let ray = pixel_ray(&k, &pose, i, j);
                     let first = intersect(&ray, glass);
-                    rgb.push(shade(&ray, glass, 0));
+                    let c = shade(&ray, glass, 0);
+                    rgb.push(match capture.gain == [1.0; 3] {
+                        true => c,
+                        // A camera's exposure: the sensor saturates.
+                        false => std::array::from_fn(|ch| (c[ch] * capture.gain[ch]).clamp(0.0, 1.0)),
+                    });
                     z.push(first.map_or(f32::NAN, |h| ray.range_to_z(h.t)));
                     mask.push(first.is_some_and(|h| matches!(h.surface, Surface::Glass)));
                 }
             }
+            let pose = match capture.pose_noise {
+                Some((metres, degrees, seed)) => jitter(pose, metres, degrees, crate::rng::Rng::stream(seed, v as u64)),
+                None => pose,
+            };
             (View { intrinsics: k, pose, rgb }, z, mask)
         })
         .collect();
@@ -342,6 +377,20 @@ pub fn workspace_with(size: u32, n_views: usize, phase: f32, glass: Glass) -> Sy
         scene.masks.push(mask);
     }
     scene
+}
+
+/// `pose` moved by `metres` in a random direction and turned by `degrees` about a random axis
+/// (the directions drawn from `rng`).
+pub fn jitter(pose: Pose, metres: f32, degrees: f32, mut rng: crate::rng::Rng) -> Pose {
+    let mut unit = || {
+        let z = rng.uniform(-1.0, 1.0);
+        let a = std::f32::consts::TAU * rng.f32();
+        let r = (1.0 - z * z).max(0.0).sqrt();
+        Vec3::new(r * a.cos(), r * a.sin(), z)
+    };
+    let (shift, axis) = (unit(), unit());
+    let turn = glam::Mat3::from_axis_angle(axis, degrees.to_radians());
+    Pose { rotation: turn * pose.rotation, translation: pose.translation + metres * shift }
 }
 
 /// The mask's bounding box grown by ⌈10%⌉ of its larger side, clamped; the full image when

@@ -1,18 +1,22 @@
-//! Pinhole cameras and rays (DESIGN §3 conventions).
+//! Cameras and rays (DESIGN §3 conventions): pinhole intrinsics with an optional lens
+//! distortion ([`Distortion`]: OpenCV's radial-tangential or fisheye model).
 //!
 //! Poses are camera-to-world in the OpenGL / NeRF-synthetic convention: the camera looks down
 //! its −Z axis with +Y up and +X right. Pixel `(i, j)` (column `i`, row `j` from the top) is the
 //! ray through image point `(i + ½, j + ½)`, camera-space direction
-//! `((i + ½ − cx)/fx, −(j + ½ − cy)/fy, −1)`, rotated to world and normalised.
+//! `((i + ½ − cx)/fx, −(j + ½ − cy)/fy, −1)`, rotated to world and normalised; with a lens
+//! distortion the point `((i + ½ − cx)/fx, (j + ½ − cy)/fy)` is first undistorted (OpenCV's
+//! normalised coordinates, y down).
 //!
 //! Distances along a ray are **range** `t` (unit-length direction). Robots and the datasets'
 //! ground truth use **z-depth**, the distance along the viewing axis: `z = t · (d · forward)`
 //! ([`Ray::z_per_t`]); equivalently `t = z · √(1 + x² + y²)` for the camera-space direction
 //! `(x, y, −1)`.
 
-use glam::{Mat3, Vec3};
+use super::distortion::Distortion;
+use glam::{DVec3, Mat3, Vec3};
 
-/// Pinhole intrinsics in pixels.
+/// Intrinsics in pixels: a pinhole camera and its lens distortion.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Intrinsics {
     /// Image width in pixels.
@@ -27,14 +31,38 @@ pub struct Intrinsics {
     pub cx: f32,
     /// Principal point y (pixels).
     pub cy: f32,
+    /// The lens distortion ([`Distortion::None`] for a pinhole camera).
+    pub distortion: Distortion,
 }
 
 impl Intrinsics {
+    /// A pinhole camera (no distortion).
+    pub fn pinhole(width: u32, height: u32, fx: f32, fy: f32, cx: f32, cy: f32) -> Intrinsics {
+        Intrinsics { width, height, fx, fy, cx, cy, distortion: Distortion::None }
+    }
+
     /// Square pixels from a horizontal field of view (`camera_angle_x`), principal point at the
     /// image centre: `f = ½ w / tan(½ fov)`.
     pub fn from_fov_x(width: u32, height: u32, camera_angle_x: f32) -> Intrinsics {
         let f = 0.5 * width as f32 / (0.5 * camera_angle_x).tan();
-        Intrinsics { width, height, fx: f, fy: f, cx: 0.5 * width as f32, cy: 0.5 * height as f32 }
+        Intrinsics::pinhole(width, height, f, f, 0.5 * width as f32, 0.5 * height as f32)
+    }
+
+    /// Camera-space point `c` (OpenGL axes: the camera looks down −Z) in the image: pixel
+    /// coordinates `(u, v)` (`(0, 0)` the top-left corner of the first pixel) through the lens,
+    /// or `None` when it is not in front of the camera (z-depth ≤ 1 mm) or the lens does not image it.
+    pub fn project(&self, c: Vec3) -> Option<(f32, f32)> {
+        let zc = -c.z;
+        if zc.is_nan() || zc <= 1e-3 {
+            return None;
+        }
+        match self.distortion {
+            Distortion::None => Some((self.cx + self.fx * c.x / zc, self.cy - self.fy * c.y / zc)),
+            d => {
+                let (x, y) = d.distort(DVec3::new(c.x as f64, -c.y as f64, zc as f64))?;
+                Some(((self.cx as f64 + self.fx as f64 * x) as f32, (self.cy as f64 + self.fy as f64 * y) as f32))
+            }
+        }
     }
 }
 
@@ -109,9 +137,19 @@ impl Ray {
     }
 }
 
-/// The ray through the centre of pixel `(i, j)` (column, row from the top).
+/// The ray through the centre of pixel `(i, j)` (column, row from the top), through the lens.
+/// Where a distortion cannot be inverted (outside the region [`Distortion::check`] accepts for a
+/// dataset's images) the pixel's distorted point is used as if undistorted.
 pub fn pixel_ray(k: &Intrinsics, pose: &Pose, i: u32, j: u32) -> Ray {
-    let cam = Vec3::new((i as f32 + 0.5 - k.cx) / k.fx, -(j as f32 + 0.5 - k.cy) / k.fy, -1.0);
+    let cam = match k.distortion {
+        Distortion::None => Vec3::new((i as f32 + 0.5 - k.cx) / k.fx, -(j as f32 + 0.5 - k.cy) / k.fy, -1.0),
+        d => {
+            let x = (i as f64 + 0.5 - k.cx as f64) / k.fx as f64;
+            let y = (j as f64 + 0.5 - k.cy as f64) / k.fy as f64;
+            let u = d.undistort(x, y).unwrap_or(DVec3::new(x, y, 1.0));
+            Vec3::new(u.x as f32, -u.y as f32, -u.z as f32)
+        }
+    };
     let dir = (pose.rotation * cam).normalize();
     Ray { origin: pose.translation, dir, z_per_t: dir.dot(pose.forward()) }
 }

@@ -1,10 +1,12 @@
 //! Geometry every layer shares: the scene box ([`Aabb`]: the field's encodings, the occupancy
 //! grid, the change region, the datasets) and cameras ([`camera`]: intrinsics, poses, pixel
-//! rays, depth conventions).
+//! rays, depth conventions; [`distortion`]: lens models).
 
 pub mod camera;
+pub mod distortion;
 
 pub use camera::{pixel_ray, DepthKind, Intrinsics, Pose, Ray};
+pub use distortion::Distortion;
 use glam::Vec3;
 
 /// The scene's axis-aligned bounding box.

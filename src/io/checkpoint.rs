@@ -86,6 +86,12 @@ pub fn views_fingerprint(views: &[View]) -> u64 {
         for x in [k.fx, k.fy, k.cx, k.cy] {
             eat(&x.to_le_bytes());
         }
+        if !k.distortion.is_none() {
+            eat(k.distortion.model_name().as_bytes());
+            for (_, c) in k.distortion.coefficients() {
+                eat(&c.to_le_bytes());
+            }
+        }
         for x in v.pose.rotation.to_cols_array().iter().chain(&v.pose.translation.to_array()) {
             eat(&x.to_le_bytes());
         }

@@ -166,13 +166,19 @@ pub fn depth_ply_bytes(depth: &[f32], k: &Intrinsics, pose: &Pose, rgb: Option<&
 /// The camera of a depth image as JSON: intrinsics, camera-to-world pose (OpenGL camera) and
 /// the depth convention.
 pub fn camera_json(k: &Intrinsics, pose: &Pose) -> String {
-    serde_json::json!({
+    let mut j = serde_json::json!({
         "width": k.width, "height": k.height, "fx": k.fx, "fy": k.fy, "cx": k.cx, "cy": k.cy,
+        "camera_model": k.distortion.model_name(),
         "transform_matrix": pose.to_matrix(),
         "camera_convention": "OpenGL camera-to-world (camera looks down -Z, +Y up)",
         "depth_kind": "z", "depth_unit": "m", "holes": "NaN in .exr/.npy, 0 in the 16-bit mm PNG",
-    })
-    .to_string()
+    });
+    if !k.distortion.is_none() {
+        for (name, c) in k.distortion.coefficients() {
+            j[name] = c.into();
+        }
+    }
+    j.to_string()
 }
 
 /// Writes `bytes` atomically, naming the file on error.

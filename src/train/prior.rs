@@ -5,11 +5,16 @@
 //! 1. **Background colours** per scene training view: the background capture's image at the
 //!    same pose when there is one (same intrinsics, pose within [`SAME_POSE`]), else the
 //!    background model rendered at that pose.
-//! 2. **Change maps** ([`change_map`]): a pixel changed when the 3×3 box-filtered colours differ
+//! 2. **Exposure and white balance** ([`fit_correction`]): per scene view, a per-channel gain
+//!    fitted robustly (trimmed least squares) from the scene image to the background's colours, so a global brightness or white-balance change between the two
+//!    captures is not a change; the change maps are computed after it and the residual trains
+//!    on the corrected images ([`ScenePrior::corrected_views`]), in the frozen background's
+//!    appearance. A fit within [`IDENTITY_GAIN`] of the identity is not applied ([`PriorConfig::exposure`] turns the correction off).
+//! 3. **Change maps** ([`change_map`]): a pixel changed when the 3×3 box-filtered colours differ
 //!    by more than [`PriorConfig::tolerance`] in some channel; single specks are removed (a
 //!    changed pixel needs [`MIN_NEIGHBOURS`] changed 8-neighbours) and the map is dilated by
 //!    [`PriorConfig::dilate_px`] pixels, so the edges of a faint glass are kept.
-//! 3. **Change region** ([`vote_region`]): every occupancy cell is projected into every view; a
+//! 4. **Change region** ([`vote_region`]): every occupancy cell is projected into every view; a
 //!    view *sees* the cell when it lies in front of the background's threshold-depth surface at
 //!    that pixel (within a cell diagonal; at a hole in the background's depth per
 //!    [`PriorConfig::holes_see`]). A cell is changed when at least [`PriorConfig::min_seen`] of
@@ -17,9 +22,9 @@
 //!    changed pixel there: a visual hull of the change maps, carved by the background's own
 //!    geometry, so a view whose line of sight is blocked by an opaque object does not vote. The
 //!    region is then dilated by [`PriorConfig::region_dilate`] cells.
-//! 4. **Focus pixels**: the changed pixels of every view, from which the trainer draws
+//! 5. **Focus pixels**: the changed pixels of every view, from which the trainer draws
 //!    [`PriorConfig::change_share`] of each step's rays ([`crate::train::trainer::Focus`]).
-//! 5. **Reach pixels** ([`reach_pixels`]): the pixels whose ray crosses the region in front of
+//! 6. **Reach pixels** ([`reach_pixels`]): the pixels whose ray crosses the region in front of
 //!    the background's surface. Outside the region the field is the frozen background, so a ray
 //!    that misses it carries no gradient; with the region the trainer draws the rest of each
 //!    step's rays from these pixels (changed or not: the unchanged ones carve the region's
@@ -76,6 +81,9 @@ pub struct PriorConfig {
     /// The density floor a warm-started residual gets inside the region before training
     /// ([`crate::train::lift`]); `None`: none. Defaults to [`DEFAULT_LIFT`].
     pub lift: Option<LiftConfig>,
+    /// Correct each scene image's exposure and white balance to the background's before the
+    /// change maps and training ([`fit_correction`]). Defaults to true.
+    pub exposure: bool,
 }
 
 /// Default density floor (measured on the dev scenes: docs/DECISIONS.md).
@@ -96,6 +104,7 @@ impl Default for PriorConfig {
             change_share: 0.5,
             beta: DEFAULT_BETA,
             lift: DEFAULT_LIFT,
+            exposure: true,
         }
     }
 }
@@ -113,9 +122,101 @@ pub struct ScenePrior {
     pub focus: Vec<(u32, u32)>,
     /// `(view, pixel)` of every pixel whose ray crosses the region ([`reach_pixels`]).
     pub reach: Vec<(u32, u32)>,
+    /// The colour correction applied to each training view (identity when off or negligible).
+    pub corrections: Vec<ColourCorrection>,
+}
+
+/// A fitted gain within this of 1 in every channel is not applied: below that the fit is
+/// within a rendered background's noise, and the change maps' tolerance (0.05) absorbs it.
+pub const IDENTITY_GAIN: f32 = 0.02;
+
+/// A per-channel gain `c ↦ gain·c`, clamped to [0, 1]: an exposure and white-balance change.
+/// Both act on the captured colours as a per-channel factor (in linear light, and through a
+/// power-law encoding, `(g·L)^γ = g^γ·L^γ`), so no offset is fitted: with one, a large shadow
+/// trades gain for offset (measured on the dev set's bottle: gains 0.90, offsets 0.09).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ColourCorrection {
+    /// Per-channel gain.
+    pub gain: [f32; 3],
+}
+
+impl ColourCorrection {
+    /// No correction.
+    pub const IDENTITY: ColourCorrection = ColourCorrection { gain: [1.0; 3] };
+
+    /// `c` corrected.
+    pub fn apply(&self, c: [f32; 3]) -> [f32; 3] {
+        std::array::from_fn(|k| (self.gain[k] * c[k]).clamp(0.0, 1.0))
+    }
+
+    /// Whether it is within [`IDENTITY_GAIN`] of the identity.
+    pub fn is_negligible(&self) -> bool {
+        self.gain.iter().all(|g| (g - 1.0).abs() <= IDENTITY_GAIN)
+    }
+}
+
+/// Trimmed least-squares rounds of [`fit_correction`].
+const FIT_ROUNDS: usize = 5;
+
+/// The per-channel gain taking `scene`'s colours to `background`'s (same pixels), robust to the
+/// pixels that really changed: least squares per channel (`g = Σxy / Σx²`) over the inlier
+/// pixels, refitted [`FIT_ROUNDS`] times, a pixel an inlier while its worst channel's residual
+/// is within 3 robust standard deviations (1.4826 × the median absolute residual, at least
+/// 0.01). Starts from every pixel; the changed ones (a glass, its shadow: a minority) drop out
+/// as the fit settles. Saturated pixels (a channel at 0 or 1 in either image) are left out: they
+/// carry no gain.
+pub fn fit_correction(scene: &[[f32; 3]], background: &[[f32; 3]]) -> ColourCorrection {
+    let usable: Vec<usize> = (0..scene.len())
+        .filter(|&p| (0..3).all(|k| scene[p][k] > 0.002 && scene[p][k] < 0.998 && background[p][k] < 0.998))
+        .collect();
+    if usable.len() < 16 {
+        return ColourCorrection::IDENTITY;
+    }
+    let mut c = ColourCorrection::IDENTITY;
+    let mut inliers = usable.clone();
+    for _ in 0..FIT_ROUNDS {
+        for k in 0..3 {
+            let (mut sxx, mut sxy) = (0.0f64, 0.0f64);
+            for &p in &inliers {
+                let (x, y) = (scene[p][k] as f64, background[p][k] as f64);
+                (sxx, sxy) = (sxx + x * x, sxy + x * y);
+            }
+            c.gain[k] = if sxx > 0.0 { (sxy / sxx) as f32 } else { 1.0 };
+        }
+        let worst = |p: usize| (0..3).map(|k| (c.gain[k] * scene[p][k] - background[p][k]).abs()).fold(0f32, f32::max);
+        let r: Vec<f32> = usable.iter().map(|&p| worst(p)).collect();
+        let mut sorted = r.clone();
+        sorted.sort_by(f32::total_cmp);
+        let limit = (3.0 * 1.4826 * sorted[sorted.len() / 2]).max(0.01);
+        let kept: Vec<usize> = usable.iter().zip(&r).filter(|(_, &e)| e <= limit).map(|(&p, _)| p).collect();
+        if kept.len() < 16 {
+            break;
+        }
+        inliers = kept;
+    }
+    c
 }
 
 impl ScenePrior {
+    /// `views` (the ones the prior was computed from) in the background's appearance: each
+    /// image through its [`ColourCorrection`] (views whose correction is the identity are
+    /// returned as they are).
+    pub fn corrected_views(&self, views: &[View]) -> Vec<View> {
+        views
+            .iter()
+            .zip(&self.corrections)
+            .map(|(v, c)| match *c == ColourCorrection::IDENTITY {
+                true => v.clone(),
+                false => View { rgb: v.rgb.iter().map(|&x| c.apply(x)).collect(), ..v.clone() },
+            })
+            .collect()
+    }
+
+    /// How many views' images are corrected.
+    pub fn corrected_count(&self) -> usize {
+        self.corrections.iter().filter(|c| **c != ColourCorrection::IDENTITY).count()
+    }
+
     /// Share of the training pixels marked changed.
     pub fn changed_share(&self) -> f64 {
         self.focus.len() as f64 / self.maps.iter().map(Vec::len).sum::<usize>().max(1) as f64
@@ -129,7 +230,11 @@ impl ScenePrior {
 
 fn same_pose(a: &View, b: &View) -> bool {
     let (ka, kb) = (&a.intrinsics, &b.intrinsics);
-    let same_k = ka.width == kb.width && ka.height == kb.height && ka.fx == kb.fx && ka.fy == kb.fy;
+    let same_k = ka.width == kb.width
+        && ka.height == kb.height
+        && ka.fx == kb.fx
+        && ka.fy == kb.fy
+        && ka.distortion == kb.distortion;
     let dr = (a.pose.rotation - b.pose.rotation).to_cols_array().iter().fold(0f32, |m, v| m.max(v.abs()));
     same_k && dr <= SAME_POSE && (a.pose.translation - b.pose.translation).abs().max_element() <= SAME_POSE
 }
@@ -229,12 +334,11 @@ pub fn change_map(scene: &[[f32; 3]], background: &[[f32; 3]], w: u32, h: u32, c
     out
 }
 
-/// World point `p` in `v`'s image: pixel coordinates and camera z-depth, `None` when it is not
-/// in front of the camera (z ≤ 1 mm).
+/// World point `p` in `v`'s image (through its lens): pixel coordinates and camera z-depth,
+/// `None` when it is not in front of the camera (z ≤ 1 mm).
 fn project(v: &View, p: Vec3) -> Option<(f32, f32, f32)> {
-    let (k, c) = (&v.intrinsics, v.pose.rotation.transpose() * (p - v.pose.translation));
-    let zc = -c.z;
-    (zc > 1e-3).then(|| (k.cx + k.fx * c.x / zc, k.cy - k.fy * c.y / zc, zc))
+    let c = v.pose.rotation.transpose() * (p - v.pose.translation);
+    v.intrinsics.project(c).map(|(u, v)| (u, v, -c.z))
 }
 
 /// Votes the change maps into a region over the cells of `grid` (the background's occupancy
@@ -357,10 +461,27 @@ pub fn scene_prior(
     cfg: &PriorConfig,
 ) -> ScenePrior {
     let (bg, matched_views) = background_at(isa, background, bg_views, views, sky, m);
+    let corrections: Vec<ColourCorrection> = views
+        .par_iter()
+        .zip(&bg)
+        .map(|(v, (colours, _))| match cfg.exposure {
+            true => Some(fit_correction(&v.rgb, colours))
+                .filter(|c| !c.is_negligible())
+                .unwrap_or(ColourCorrection::IDENTITY),
+            false => ColourCorrection::IDENTITY,
+        })
+        .collect();
     let maps: Vec<Vec<bool>> = views
         .par_iter()
         .zip(&bg)
-        .map(|(v, (colours, _))| change_map(&v.rgb, colours, v.intrinsics.width, v.intrinsics.height, cfg))
+        .zip(&corrections)
+        .map(|((v, (colours, _)), c)| {
+            let (w, h) = (v.intrinsics.width, v.intrinsics.height);
+            match *c == ColourCorrection::IDENTITY {
+                true => change_map(&v.rgb, colours, w, h, cfg),
+                false => change_map(&v.rgb.iter().map(|&x| c.apply(x)).collect::<Vec<_>>(), colours, w, h, cfg),
+            }
+        })
         .collect();
     let depth: Vec<Vec<f32>> = bg.into_iter().map(|(_, z)| z).collect();
     let region = vote_region(&background.occupancy, views, &maps, &depth, cfg);
@@ -370,7 +491,7 @@ pub fn scene_prior(
         .enumerate()
         .flat_map(|(i, map)| map.iter().enumerate().filter(|(_, &c)| c).map(move |(p, _)| (i as u32, p as u32)))
         .collect();
-    ScenePrior { maps, matched_views, region, focus, reach }
+    ScenePrior { maps, matched_views, region, focus, reach, corrections }
 }
 
 /// Which of the background's hints a residual model uses.

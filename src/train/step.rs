@@ -1,0 +1,235 @@
+//! One slot's share of a fused training step ([`Worker`]): the slot's rays in chunks of whole
+//! rays, each chunk marched through the occupancy grid, run through the densities, cut at each
+//! ray's opaque point, run through the colours, composited (Eq. 2), scored (Eq. 4, plus the
+//! optional distortion loss, β terms and near-camera gradient scaling) and back-propagated to
+//! its feature gradients before the next chunk starts. The step itself (ray sampling, the slots'
+//! reduction, Adam, the occupancy refresh) is [`super::trainer`].
+
+use super::beta::beta_terms;
+use super::trainer::TrainConfig;
+use crate::field::model::Model;
+use crate::render::distortion::distortion_backward;
+use crate::render::{composite_ray, composite_ray_backward, OccupancyGrid, PackedSamples, Ray, RayAccumulator};
+use crate::simd::Isa;
+use glam::Vec3;
+
+/// Scales each sample's gradients by `min(1, (t / distance)²)` ([`TrainConfig::near_gradient_distance`]).
+pub fn scale_near_gradients(t: &[f32], distance: f32, d_sigma: &mut [f32], d_rgb: &mut [[f32; 3]]) {
+    let inv = 1.0 / distance;
+    for ((ds, dc), &t) in d_sigma.iter_mut().zip(d_rgb.iter_mut()).zip(t) {
+        let k = (t * inv).min(1.0).powi(2);
+        *ds *= k;
+        *dc = dc.map(|v| v * k);
+    }
+}
+
+/// The step's rays, their target colours and the colours behind them.
+#[derive(Default)]
+pub(super) struct StepRays {
+    pub(super) rays: Vec<Ray>,
+    pub(super) targets: Vec<[f32; 3]>,
+    pub(super) backgrounds: Vec<[f32; 3]>,
+    /// Whether each ray's pixel is known unchanged (the β penalty's rays).
+    pub(super) unchanged: Vec<bool>,
+}
+
+/// Marched samples a chunk of the fused step holds at least (it takes whole rays, so it ends
+/// with the rest of its last ray). Small enough that a chunk's activations (~1 KiB a sample)
+/// stay in L1/L2 between its forward and backward: the MLPs run 1.6× faster on 64-row
+/// batches than on 16 384-row ones (BENCHMARKS.md, session 6).
+pub const CHUNK_SAMPLES: usize = 128;
+
+/// Samples of a ray's first evaluated segment; each further segment doubles. A ray's
+/// densities are evaluated only up to the segment in which it turns opaque.
+pub const RAY_SEGMENT: usize = 128;
+
+/// One slot's share of a fused step: its chunk's buffers, reused from step to step.
+pub(super) struct Worker<C> {
+    chunk: C,
+    marched: PackedSamples,
+    positions: Vec<Vec3>,
+    dirs: Vec<Vec3>,
+    sigma: Vec<f32>,
+    keep: Vec<u32>,
+    kept: Vec<(u32, u32)>,
+    rgb: Vec<[f32; 3]>,
+    d_sigma: Vec<f32>,
+    d_rgb: Vec<[f32; 3]>,
+    scratch: Vec<f32>,
+    /// This step's summed squared error, marched and kept samples.
+    pub(super) loss: f64,
+    pub(super) n_marched: usize,
+    pub(super) n_kept: usize,
+}
+
+impl<C: Default> Default for Worker<C> {
+    fn default() -> Self {
+        Worker {
+            chunk: C::default(),
+            marched: PackedSamples::default(),
+            positions: Vec::new(),
+            dirs: Vec::new(),
+            sigma: Vec::new(),
+            keep: Vec::new(),
+            kept: Vec::new(),
+            rgb: Vec::new(),
+            d_sigma: Vec::new(),
+            d_rgb: Vec::new(),
+            scratch: Vec::new(),
+            loss: 0.0,
+            n_marched: 0,
+            n_kept: 0,
+        }
+    }
+}
+
+/// What a slot's chunks read: the model and its parameters, the grid, the settings.
+pub(super) struct StepInputs<'a, M: Model> {
+    pub(super) isa: Isa,
+    pub(super) model: &'a M,
+    pub(super) params: &'a M::Params,
+    pub(super) occupancy: &'a OccupancyGrid,
+    pub(super) cfg: &'a TrainConfig,
+    /// This step's β entropy weight (0 before [`BetaRegulariser::entropy_from`]).
+    pub(super) entropy: f32,
+}
+
+impl<C> Worker<C> {
+    /// Runs the slot's `rays` chunk by chunk into `slot`.
+    pub(super) fn run<M: Model<Chunk = C>>(
+        &mut self,
+        x: &StepInputs<M>,
+        rays: &StepRays,
+        range: std::ops::Range<usize>,
+        slot: &mut M::Slot,
+    ) {
+        (self.loss, self.n_marched, self.n_kept) = (0.0, 0, 0);
+        x.model.begin_slot(slot);
+        self.begin_chunk();
+        let mut first = range.start;
+        for i in range.clone() {
+            self.add_ray(x, &rays.rays[i]);
+            if self.marched.len() >= CHUNK_SAMPLES || i + 1 == range.end {
+                self.run_chunk(x, rays, first..i + 1, slot);
+                self.begin_chunk();
+                first = i + 1;
+            }
+        }
+    }
+
+    /// Empties the chunk's buffers.
+    fn begin_chunk(&mut self) {
+        self.marched.clear();
+        self.positions.clear();
+        self.dirs.clear();
+        self.sigma.clear();
+        self.keep.clear();
+        self.kept.clear();
+    }
+
+    /// Adds a ray to the chunk: marches it segment by segment ([`RAY_SEGMENT`] samples,
+    /// doubling), evaluates each segment's densities as the chunk's next rows, and stops at
+    /// the segment in which the ray turns opaque (`T < 1e-4`): the samples behind it would be
+    /// dropped unseen by compositing (nerfacc's early stop). Keeps the ray's samples up to its
+    /// opaque point. The samples are exactly those of marching the whole ray.
+    fn add_ray<M: Model<Chunk = C>>(&mut self, x: &StepInputs<M>, r: &Ray) {
+        let (occ, m) = (x.occupancy, &mut self.marched);
+        let (max, stride) = (occ.config().max_samples, x.cfg.frozen_stride);
+        let start = m.t.len();
+        let first_kept = self.keep.len() as u32;
+        if let Some(span) = occ.span(r.origin, r.dir) {
+            let mut acc = RayAccumulator::new();
+            let (mut next, mut taken, mut segment) = (0, 0u32, RAY_SEGMENT);
+            loop {
+                let s0 = m.t.len();
+                let room = segment.min(max.saturating_sub(taken) as usize);
+                next = occ.march_segment(r.origin, r.dir, span, next..span.steps, room, stride, &mut m.t, &mut m.delta);
+                let count = m.t.len() - s0;
+                if count == 0 {
+                    break;
+                }
+                taken += count as u32;
+                for &t in &m.t[s0..] {
+                    self.positions.push(r.at(t));
+                    self.dirs.push(r.dir);
+                }
+                self.sigma.resize(s0 + count, 0.0);
+                let (p, sigma) = (&self.positions[s0..], &mut self.sigma[s0..]);
+                x.model.chunk_density(x.isa, x.params, s0, p, sigma, &mut self.chunk);
+                for i in s0..s0 + count {
+                    if acc.is_opaque() {
+                        break;
+                    }
+                    acc.push(self.sigma[i], m.delta[i], 0.0, [0.0; 3]);
+                    self.keep.push(i as u32);
+                }
+                if acc.is_opaque() || next >= span.steps || taken >= max {
+                    break;
+                }
+                segment *= 2;
+            }
+        }
+        m.rays.push((start as u32, (m.t.len() - start) as u32));
+        self.kept.push((first_kept, self.keep.len() as u32 - first_kept));
+    }
+
+    /// The rest of a chunk whose rays [`Worker::add_ray`] evaluated: colours of the kept
+    /// samples, compositing and loss, and back through everything into `slot`.
+    fn run_chunk<M: Model<Chunk = C>>(
+        &mut self,
+        x: &StepInputs<M>,
+        rays: &StepRays,
+        range: std::ops::Range<usize>,
+        slot: &mut M::Slot,
+    ) {
+        let (cfg, m) = (x.cfg, &mut self.marched);
+        self.n_marched += m.len();
+        let k = self.keep.len();
+        self.n_kept += k;
+        for v in [&mut m.t, &mut m.delta, &mut self.sigma] {
+            crate::mlp::keep_rows(v, 1, &self.keep);
+            v.truncate(k);
+        }
+        crate::mlp::keep_rows(&mut self.dirs, 1, &self.keep);
+        self.dirs.truncate(k);
+        self.rgb.resize(k, [0.0; 3]);
+        if k > 0 {
+            x.model.chunk_colour(x.isa, x.params, &self.keep, &self.dirs, &mut self.rgb, &mut self.chunk);
+        }
+        // Composite, loss, and back through compositing, ray by ray.
+        self.d_sigma.resize(k, 0.0);
+        self.d_rgb.resize(k, [0.0; 3]);
+        let scale = 2.0 / (3 * cfg.rays_per_step) as f32;
+        let mut beta = match cfg.beta.is_on() && k > 0 {
+            true => x.model.chunk_beta(&mut self.chunk),
+            false => None,
+        };
+        for (ray, &(s0, count)) in range.zip(&self.kept) {
+            let r = s0 as usize..(s0 + count) as usize;
+            let (sigma, delta, t) = (&self.sigma[r.clone()], &m.delta[r.clone()], &m.t[r.clone()]);
+            let c = composite_ray(sigma, delta, t, &self.rgb[r.clone()], rays.backgrounds[ray]);
+            let err: [f32; 3] = std::array::from_fn(|i| c.rgb[i] - rays.targets[ray][i]);
+            self.loss += err.iter().map(|e| (e * e) as f64).sum::<f64>();
+            let (d_s, d_c) = (&mut self.d_sigma[r.clone()], &mut self.d_rgb[r.clone()]);
+            composite_ray_backward(sigma, delta, &self.rgb[r.clone()], &c, err.map(|e| e * scale), d_s, d_c);
+            if cfg.distortion > 0.0 {
+                let weight = cfg.distortion / cfg.rays_per_step as f32;
+                distortion_backward(sigma, delta, t, weight, d_s, &mut self.scratch);
+            }
+            if let Some((beta, d_beta)) = &mut beta {
+                // Per-ray terms, averaged over the step's rays.
+                let unchanged = if rays.unchanged[ray] { cfg.beta.unchanged } else { 0.0 } / cfg.rays_per_step as f32;
+                let entropy = x.entropy / cfg.rays_per_step as f32;
+                if unchanged > 0.0 || entropy > 0.0 {
+                    beta_terms(sigma, delta, &beta[r.clone()], unchanged, entropy, &mut d_beta[r.clone()]);
+                }
+            }
+            if cfg.near_gradient_distance > 0.0 {
+                scale_near_gradients(t, cfg.near_gradient_distance, d_s, d_c);
+            }
+        }
+        if k > 0 {
+            x.model.chunk_backward(x.isa, x.params, &mut self.chunk, &self.d_sigma, &self.d_rgb, slot);
+        }
+    }
+}
