@@ -1,0 +1,198 @@
+//! What a parsed command line is: the [`Command`] and the arguments of the larger commands.
+
+use crate::render::DepthMethod;
+use std::path::PathBuf;
+
+/// Scoring crop of `rnerf eval`.
+pub use crate::eval::CropRule;
+
+/// A parsed command line.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Command {
+    /// `rnerf train`.
+    Train(TrainArgs),
+    /// `rnerf import colmap`.
+    ImportColmap(crate::data::colmap::ImportOptions),
+    /// `rnerf render`.
+    Render {
+        /// Model file (`--model`).
+        model: PathBuf,
+        /// Dataset folder (`--data`).
+        data: PathBuf,
+        /// Output folder (`--out`).
+        out: PathBuf,
+        /// Split (`--split`, default `test`).
+        split: String,
+        /// Depth method (`--depth`, `--m`, `--m-raw`).
+        depth: DepthMethod,
+        /// Worker threads (`--threads`).
+        threads: Option<usize>,
+    },
+    /// `rnerf eval`.
+    Eval {
+        /// Model file (`--model`).
+        model: PathBuf,
+        /// Dataset folder (`--data`).
+        data: PathBuf,
+        /// Split (`--split`, default `test`).
+        split: String,
+        /// Depth method (`--depth`, `--m`, `--m-raw`).
+        depth: DepthMethod,
+        /// Scoring crop (`--crop`, default the frames' own).
+        crop: CropRule,
+        /// Score only ground truth nearer than this (`--limit`, metres).
+        limit: Option<f32>,
+        /// One JSON object on stdout (`--json`).
+        json: bool,
+        /// Worker threads (`--threads`).
+        threads: Option<usize>,
+    },
+    /// `rnerf compare`.
+    Compare(CompareArgs),
+    /// `rnerf demo`.
+    Demo {
+        /// Output folder (`--out`, default `rnerf-demo`).
+        out: Option<PathBuf>,
+        /// Training steps (`--steps`).
+        steps: Option<u32>,
+        /// Image size in pixels (`--size`, square images).
+        size: Option<u32>,
+        /// Seed (`--seed`).
+        seed: Option<u64>,
+        /// Worker threads (`--threads`); all cores when absent.
+        threads: Option<usize>,
+    },
+    /// `rnerf bench`.
+    Bench {
+        /// One JSON object instead of a table (`--json`).
+        json: bool,
+        /// Repetitions per figure (`--reps`).
+        reps: Option<usize>,
+        /// Hash-grid table size (`--log2t`).
+        log2t: Option<u32>,
+        /// Worker threads (`--threads`).
+        threads: Option<usize>,
+        /// Trained models whose depth rendering is timed instead of the bench's own (`--model`,
+        /// repeatable: one NeRF, one residual model).
+        models: Vec<PathBuf>,
+        /// Their camera: the first test view of this dataset (`--data`, needed with `--model`).
+        data: Option<PathBuf>,
+    },
+    /// `rnerf help`, `-h`, `--help` or no arguments.
+    Help,
+}
+
+/// Arguments of `rnerf train`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TrainArgs {
+    /// Dataset folder (`--data`).
+    pub data: PathBuf,
+    /// Model file to write (`--out`).
+    pub out: PathBuf,
+    /// Split to train on (`--split`, default `train`).
+    pub split: String,
+    /// Steps (`--steps`).
+    pub steps: Option<u32>,
+    /// Rays per step (`--rays`).
+    pub rays: Option<usize>,
+    /// log2 of the hash-table size (`--log2t`).
+    pub log2t: Option<u32>,
+    /// Seed (`--seed`).
+    pub seed: Option<u64>,
+    /// Worker threads (`--threads`).
+    pub threads: Option<usize>,
+    /// Metrics log (`--csv`).
+    pub csv: Option<PathBuf>,
+    /// Frozen background model: train a residual model (`--background`).
+    pub background: Option<PathBuf>,
+    /// How background and residual mix (`--mix`, `--density-mix`); default Mixnet, raw.
+    pub mix: Option<crate::field::mix::MixKind>,
+    /// The Mixnet's encoding (`--mixnet-encoding`); default its own grid.
+    pub mixnet: Option<crate::field::mixnet::MixnetEncoding>,
+    /// Weight of the distortion loss (`--distortion`, 0 turns it off).
+    pub distortion: Option<f32>,
+    /// Base learning rate (`--lr`).
+    pub lr: Option<f32>,
+    /// Near-camera gradient scaling distance (`--near-grad`, 0 turns it off).
+    pub near_grad: Option<f32>,
+    /// `Some(false)`: train over the fixed background colour even for images without
+    /// alpha (`--fixed-background`).
+    pub random_bg: Option<bool>,
+    /// Steps between checkpoints (`--checkpoint-every`); none when absent (an interrupted run
+    /// still writes one).
+    pub checkpoint_every: Option<u32>,
+    /// A checkpoint to continue from with its own settings (`--resume`).
+    pub resume: Option<PathBuf>,
+    /// Train on this many evenly spaced views of the split (`--scene-views`); all when absent.
+    pub scene_views: Option<usize>,
+    /// The background hints a residual model uses (`--prior`; default all).
+    pub prior: Option<crate::train::prior::Prior>,
+    /// The background's dataset, whose images at the scene's poses give the change maps
+    /// (`--background-data`; without it the background model is rendered at those poses).
+    pub background_data: Option<PathBuf>,
+    /// Weights of the β penalty on unchanged rays and of the β entropy (`--beta U,E`).
+    pub beta: Option<(f32, f32)>,
+    /// The residual's density floor in the change region (`--region-floor S|off`).
+    pub region_floor: Option<Option<f32>>,
+    /// Share of each step's rays drawn from changed pixels (`--focus-share F`).
+    pub focus_share: Option<f32>,
+    /// The region's vote: share of the seeing views that must see a change, share of all
+    /// views that must see the cell (`--region-vote V,S`).
+    pub region_vote: Option<(f32, f32)>,
+    /// Whether the scene images are corrected to the background's exposure and white balance
+    /// (`--exposure-correction on|off`; default on).
+    pub exposure_correction: Option<bool>,
+    /// Lattice steps per training sample outside a residual model's change region
+    /// (`--frozen-stride N`).
+    pub frozen_stride: Option<u32>,
+}
+
+/// Arguments of `rnerf compare`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CompareArgs {
+    /// Background dataset folder (`--background`).
+    pub background: PathBuf,
+    /// A trained background model to use instead of training one (`--background-model`).
+    pub background_model: Option<PathBuf>,
+    /// Scene dataset folders (`--scene`, repeatable).
+    pub scenes: Vec<PathBuf>,
+    /// Output folder (`--out`), created if missing.
+    pub out: PathBuf,
+    /// Methods (`--methods`, default [`crate::compare::Method::defaults`]: dex, finetune,
+    /// residual-paper, residual).
+    pub methods: Vec<crate::compare::Method>,
+    /// Train every method on this many evenly spaced scene views (`--scene-views`); the
+    /// background keeps all of its own.
+    pub scene_views: Option<usize>,
+    /// Steps per method (`--steps`).
+    pub steps: Option<u32>,
+    /// Rays per step (`--rays`).
+    pub rays: Option<usize>,
+    /// log2 of the hash-table size (`--log2t`).
+    pub log2t: Option<u32>,
+    /// Seed (`--seed`).
+    pub seed: Option<u64>,
+    /// Steps between points of the speed curves (`--eval-every`).
+    pub eval_every: Option<u32>,
+    /// Threshold of threshold depth (`--m`, `--m-raw`).
+    pub m: crate::render::DensityThreshold,
+    /// Further σ thresholds the final models are scored at (`--m-sweep`).
+    pub m_sweep: Vec<crate::render::DensityThreshold>,
+    /// Worker threads (`--threads`).
+    pub threads: Option<usize>,
+    /// Weights of the β penalty on unchanged rays and of the β entropy (`--beta U,E`).
+    pub beta: Option<(f32, f32)>,
+    /// The residual's density floor in the change region (`--region-floor S|off`).
+    pub region_floor: Option<Option<f32>>,
+    /// Share of each step's rays drawn from changed pixels (`--focus-share F`).
+    pub focus_share: Option<f32>,
+    /// The region's vote: share of the seeing views that must see a change, share of all
+    /// views that must see the cell (`--region-vote V,S`).
+    pub region_vote: Option<(f32, f32)>,
+    /// Whether the scene images are corrected to the background's exposure and white balance
+    /// (`--exposure-correction on|off`; default on).
+    pub exposure_correction: Option<bool>,
+    /// Lattice steps per training sample outside a residual model's change region
+    /// (`--frozen-stride N`).
+    pub frozen_stride: Option<u32>,
+}

@@ -1,0 +1,495 @@
+//! The flags: one table of every flag ([`FLAGS`]: name, commands, whether a checkpoint fixes
+//! it), their values as the command line is read ([`Flags`]), and the checks that need more
+//! than one flag.
+
+use super::{err, CliError, CropRule};
+use crate::render::DepthMethod;
+use std::path::PathBuf;
+
+/// A flag: its name (`--name`), the commands that take it, and whether it is a training setting
+/// a checkpoint fixes (`train --resume` refuses it).
+pub(super) struct Flag {
+    pub(super) name: &'static str,
+    pub(super) commands: &'static [&'static str],
+    pub(super) setting: bool,
+}
+
+/// The commands (besides `help`).
+pub(super) const COMMANDS: [&str; 7] = ["train", "render", "eval", "compare", "demo", "import", "bench"];
+
+/// Every flag: the one list the parser's allow-lists and the resume check read
+/// ([`Flags::take`] parses each; `tests` check that USAGE names each one).
+pub(super) const FLAGS: &[Flag] = &[
+    Flag { name: "data", commands: &["train", "render", "eval", "bench"], setting: false },
+    Flag { name: "out", commands: &["train", "render", "compare", "demo", "import"], setting: false },
+    Flag { name: "split", commands: &["train", "render", "eval"], setting: false },
+    Flag { name: "steps", commands: &["train", "compare", "demo"], setting: true },
+    Flag { name: "rays", commands: &["train", "compare"], setting: true },
+    Flag { name: "log2t", commands: &["train", "compare", "bench"], setting: true },
+    Flag { name: "seed", commands: &["train", "compare", "demo"], setting: true },
+    Flag { name: "threads", commands: &["train", "render", "eval", "compare", "demo", "bench"], setting: false },
+    Flag { name: "csv", commands: &["train"], setting: false },
+    Flag { name: "background", commands: &["train", "compare"], setting: true },
+    Flag { name: "mix", commands: &["train"], setting: true },
+    Flag { name: "density-mix", commands: &["train"], setting: true },
+    Flag { name: "mixnet-encoding", commands: &["train"], setting: true },
+    Flag { name: "distortion", commands: &["train"], setting: true },
+    Flag { name: "lr", commands: &["train"], setting: true },
+    Flag { name: "near-grad", commands: &["train"], setting: true },
+    Flag { name: "fixed-background", commands: &["train"], setting: true },
+    Flag { name: "checkpoint-every", commands: &["train"], setting: false },
+    Flag { name: "resume", commands: &["train"], setting: false },
+    Flag { name: "scene-views", commands: &["train", "compare"], setting: false },
+    Flag { name: "prior", commands: &["train"], setting: false },
+    Flag { name: "background-data", commands: &["train"], setting: false },
+    Flag { name: "beta", commands: &["train", "compare"], setting: false },
+    Flag { name: "region-floor", commands: &["train", "compare"], setting: false },
+    Flag { name: "focus-share", commands: &["train", "compare"], setting: false },
+    Flag { name: "region-vote", commands: &["train", "compare"], setting: false },
+    Flag { name: "frozen-stride", commands: &["train", "compare"], setting: true },
+    Flag { name: "exposure-correction", commands: &["train", "compare"], setting: false },
+    Flag { name: "model", commands: &["render", "eval", "import", "bench"], setting: false },
+    Flag { name: "depth", commands: &["render", "eval"], setting: false },
+    Flag { name: "m", commands: &["render", "eval", "compare"], setting: false },
+    Flag { name: "m-raw", commands: &["render", "eval", "compare"], setting: false },
+    Flag { name: "crop", commands: &["eval"], setting: false },
+    Flag { name: "limit", commands: &["eval"], setting: false },
+    Flag { name: "json", commands: &["eval", "bench"], setting: false },
+    Flag { name: "background-model", commands: &["compare"], setting: false },
+    Flag { name: "scene", commands: &["compare"], setting: false },
+    Flag { name: "methods", commands: &["compare"], setting: false },
+    Flag { name: "eval-every", commands: &["compare"], setting: false },
+    Flag { name: "m-sweep", commands: &["compare"], setting: false },
+    Flag { name: "size", commands: &["demo"], setting: false },
+    Flag { name: "images", commands: &["import"], setting: false },
+    Flag { name: "background-match", commands: &["import"], setting: false },
+    Flag { name: "known-distance", commands: &["import"], setting: false },
+    Flag { name: "reps", commands: &["bench"], setting: false },
+];
+
+/// Every flag's value, filled as the command line is read.
+#[derive(Default)]
+pub(super) struct Flags {
+    pub(super) data: Option<PathBuf>,
+    pub(super) out: Option<PathBuf>,
+    /// Every `--model` given: bench takes several, render and eval the last.
+    pub(super) models: Vec<PathBuf>,
+    pub(super) csv: Option<PathBuf>,
+    pub(super) split: Option<String>,
+    pub(super) steps: Option<u32>,
+    pub(super) size: Option<u32>,
+    pub(super) rays: Option<usize>,
+    pub(super) log2t: Option<u32>,
+    pub(super) seed: Option<u64>,
+    pub(super) threads: Option<usize>,
+    pub(super) reps: Option<usize>,
+    pub(super) depth: Option<String>,
+    pub(super) m: Option<f32>,
+    pub(super) m_raw: Option<f32>,
+    pub(super) crop: Option<CropRule>,
+    pub(super) limit: Option<f32>,
+    pub(super) json: bool,
+    pub(super) background: Option<PathBuf>,
+    pub(super) mix: Option<String>,
+    pub(super) density_mix: Option<String>,
+    pub(super) mixnet_encoding: Option<String>,
+    pub(super) distortion: Option<f32>,
+    pub(super) lr: Option<f32>,
+    pub(super) near_grad: Option<f32>,
+    pub(super) m_sweep: Option<Vec<crate::render::DensityThreshold>>,
+    pub(super) fixed_background: bool,
+    pub(super) background_model: Option<PathBuf>,
+    pub(super) scenes: Vec<PathBuf>,
+    pub(super) methods: Option<Vec<crate::compare::Method>>,
+    pub(super) eval_every: Option<u32>,
+    pub(super) checkpoint_every: Option<u32>,
+    pub(super) resume: Option<PathBuf>,
+    pub(super) scene_views: Option<usize>,
+    pub(super) prior: Option<crate::train::prior::Prior>,
+    pub(super) background_data: Option<PathBuf>,
+    pub(super) beta: Option<(f32, f32)>,
+    pub(super) region_floor: Option<Option<f32>>,
+    pub(super) focus_share: Option<f32>,
+    pub(super) region_vote: Option<(f32, f32)>,
+    pub(super) exposure_correction: Option<bool>,
+    pub(super) frozen_stride: Option<u32>,
+    /// Flags given, in order.
+    pub(super) given: Vec<String>,
+    pub(super) images: Option<PathBuf>,
+    pub(super) background_match: Option<String>,
+    pub(super) known_distance: Option<(String, String, f64)>,
+}
+
+impl Flags {
+    pub(super) fn take(&mut self, name: &str, p: &mut lexopt::Parser) -> Result<(), CliError> {
+        self.given.push(name.to_string());
+        match name {
+            "checkpoint-every" => self.checkpoint_every = Some(positive(p, name)?),
+            "scene-views" => self.scene_views = Some(positive(p, name)?),
+            "background-data" => self.background_data = Some(path(p, name)?),
+            "prior" => {
+                let s = text(p, name)?;
+                let mut h = crate::train::prior::Prior::NONE;
+                if s != "none" {
+                    for part in s.split(',') {
+                        match part {
+                            "warm-start" => h.warm_start = true,
+                            "region" => h.region = true,
+                            "focus" => h.focus = true,
+                            "beta" => h.beta = true,
+                            "reach" => h.reach = true,
+                            "all" => h = crate::train::prior::Prior::ALL,
+                            _ => {
+                                return Err(err(format!(
+                                    "--prior: '{part}' is not all, none, warm-start, region, focus, beta or reach"
+                                )))
+                            }
+                        }
+                    }
+                }
+                self.prior = Some(h);
+            }
+            "beta" => {
+                let s = text(p, name)?;
+                let v: Vec<Option<f32>> = s
+                    .split(',')
+                    .map(|x| x.parse::<f32>().ok().filter(|v| v.is_finite() && (0.0..=1e6).contains(v)))
+                    .collect();
+                match v[..] {
+                    [Some(u), Some(e)] => self.beta = Some((u, e)),
+                    _ => return Err(err(format!("--beta: '{s}' is not two weights U,E in [0, 1e6]"))),
+                }
+            }
+            "region-floor" => {
+                let s = text(p, name)?;
+                self.region_floor = Some(match s.as_str() {
+                    "off" => None,
+                    _ => Some(s.parse::<f32>().ok().filter(|v| v.is_finite() && v.abs() <= 15.0).ok_or_else(|| {
+                        err(format!("--region-floor: '{s}' is not off or a log-density in [-15, 15]"))
+                    })?),
+                });
+            }
+            "focus-share" => self.focus_share = Some(finite(p, name, 0.0, 1.0)?),
+            "frozen-stride" => {
+                let n: u32 = positive(p, name)?;
+                if n > 64 {
+                    return Err(err(format!("--frozen-stride: {n} is outside 1..=64")));
+                }
+                self.frozen_stride = Some(n);
+            }
+            "region-vote" => {
+                let s = text(p, name)?;
+                let v: Vec<Option<f32>> =
+                    s.split(',').map(|x| x.parse::<f32>().ok().filter(|v| (0.0..=1.0).contains(v))).collect();
+                match v[..] {
+                    [Some(vote), Some(seen)] => self.region_vote = Some((vote, seen)),
+                    _ => return Err(err(format!("--region-vote: '{s}' is not two shares V,S in [0, 1]"))),
+                }
+            }
+            "resume" => self.resume = Some(path(p, name)?),
+            "exposure-correction" => {
+                self.exposure_correction = Some(match text(p, name)?.as_str() {
+                    "on" => true,
+                    "off" => false,
+                    other => return Err(err(format!("--exposure-correction: '{other}' is not on or off"))),
+                })
+            }
+            "images" => self.images = Some(path(p, name)?),
+            "background-match" => {
+                let s = text(p, name)?;
+                if s.is_empty() {
+                    return Err(err("--background-match: empty text would match every image"));
+                }
+                self.background_match = Some(s);
+            }
+            "known-distance" => {
+                let s = text(p, name)?;
+                let parts: Vec<&str> = s.rsplitn(2, ',').collect();
+                let parsed = match parts[..] {
+                    [metres, names] => names.split_once(',').zip(metres.parse::<f64>().ok()),
+                    _ => None,
+                };
+                match parsed {
+                    Some(((a, b), m)) if m.is_finite() && m > 0.0 && !a.is_empty() && !b.is_empty() => {
+                        self.known_distance = Some((a.to_string(), b.to_string(), m))
+                    }
+                    _ => {
+                        return Err(err(format!(
+                            "--known-distance: '{s}' is not IMAGE_A,IMAGE_B,METRES (two image names and a positive distance)"
+                        )))
+                    }
+                }
+            }
+            "json" => self.json = true,
+            "fixed-background" => self.fixed_background = true,
+            "data" => self.data = Some(path(p, name)?),
+            "out" => self.out = Some(path(p, name)?),
+            "model" => self.models.push(path(p, name)?),
+            "csv" => self.csv = Some(path(p, name)?),
+            "background" => self.background = Some(path(p, name)?),
+            "background-model" => self.background_model = Some(path(p, name)?),
+            "scene" => self.scenes.push(path(p, name)?),
+            "eval-every" => self.eval_every = Some(positive(p, name)?),
+            "methods" => {
+                let s = text(p, name)?;
+                let mut methods = Vec::new();
+                for m in s.split(',') {
+                    let method = crate::compare::Method::parse(m).ok_or_else(|| {
+                        err(format!("--methods: '{m}' is not one of {}", crate::compare::Method::names()))
+                    })?;
+                    if methods.contains(&method) {
+                        return Err(err(format!("--methods: '{m}' given twice")));
+                    }
+                    methods.push(method);
+                }
+                self.methods = Some(methods);
+            }
+            "mix" => {
+                let s = text(p, name)?;
+                if s != "mixnet" && s != "sum" {
+                    return Err(err(format!("--mix: '{s}' is not 'mixnet' or 'sum'")));
+                }
+                self.mix = Some(s);
+            }
+            "density-mix" => {
+                let s = text(p, name)?;
+                if s != "raw" && s != "activated" {
+                    return Err(err(format!("--density-mix: '{s}' is not 'raw' or 'activated'")));
+                }
+                self.density_mix = Some(s);
+            }
+            "mixnet-encoding" => {
+                let s = text(p, name)?;
+                if s != "own" && s != "shared" {
+                    return Err(err(format!("--mixnet-encoding: '{s}' is not 'own' or 'shared'")));
+                }
+                self.mixnet_encoding = Some(s);
+            }
+            "split" => {
+                let s = text(p, name)?;
+                if s.is_empty() || !s.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') {
+                    return Err(err(format!("--split: '{s}' is not a split name (letters, digits, _ and -)")));
+                }
+                self.split = Some(s);
+            }
+            "steps" => self.steps = Some(positive(p, name)?),
+            "size" => {
+                let v: u32 = positive(p, name)?;
+                if !(16..=512).contains(&v) {
+                    return Err(err(format!("--size: {v} is outside 16..=512")));
+                }
+                self.size = Some(v);
+            }
+            "rays" => {
+                let v: usize = positive(p, name)?;
+                if v > 1 << 20 {
+                    return Err(err(format!("--rays: {v} is beyond 1048576")));
+                }
+                self.rays = Some(v);
+            }
+            "log2t" => {
+                let v: u32 = number(p, name)?;
+                if !(4..=26).contains(&v) {
+                    return Err(err(format!("--log2t: {v} is outside 4..=26")));
+                }
+                self.log2t = Some(v);
+            }
+            "seed" => self.seed = Some(number(p, name)?),
+            "threads" => self.threads = Some(positive(p, name)?),
+            "reps" => self.reps = Some(positive(p, name)?),
+            "depth" => {
+                let s = text(p, name)?;
+                if s != "threshold" && s != "expected" {
+                    return Err(err(format!("--depth: '{s}' is not 'threshold' or 'expected'")));
+                }
+                self.depth = Some(s);
+            }
+            "m" => self.m = Some(finite(p, name, 0.0, 1e9)?),
+            "m-raw" => self.m_raw = Some(finite(p, name, -1e3, 1e3)?),
+            "limit" => self.limit = Some(finite(p, name, 0.0, 1e6)?),
+            "lr" => self.lr = Some(finite(p, name, 0.0, 1.0)?),
+            "m-sweep" => {
+                let s = text(p, name)?;
+                let mut v = Vec::new();
+                for x in s.split(',').filter(|x| !x.is_empty()) {
+                    match x.parse::<f32>() {
+                        Ok(m) if m.is_finite() && m > 0.0 && m <= 1e9 => {
+                            v.push(crate::render::DensityThreshold::Sigma(m))
+                        }
+                        _ => return Err(err(format!("--m-sweep: '{x}' is not a density in (0, 1e9]"))),
+                    }
+                }
+                self.m_sweep = Some(v);
+            }
+            "near-grad" => {
+                let v: f32 = number(p, name)?;
+                if !(v.is_finite() && (0.0..=1e6).contains(&v)) {
+                    return Err(err(format!("--near-grad: {v} is outside [0, 1e6]")));
+                }
+                self.near_grad = Some(v);
+            }
+            "distortion" => {
+                let v: f32 = number(p, name)?;
+                if !(v.is_finite() && (0.0..=1.0).contains(&v)) {
+                    return Err(err(format!("--distortion: {v} is outside [0, 1]")));
+                }
+                self.distortion = Some(v);
+            }
+            "crop" => {
+                let s = text(p, name)?;
+                self.crop = Some(match s.as_str() {
+                    "frame" => CropRule::Frame,
+                    "full" => CropRule::Full,
+                    n => match n.parse::<u32>() {
+                        Ok(h) if (1..=1 << 16).contains(&h) => CropRule::Centre(h),
+                        _ => return Err(err(format!("--crop: '{s}' is not 'frame', 'full' or a half-size in pixels"))),
+                    },
+                });
+            }
+            _ => unreachable!("flag list and take() disagree on --{name}"),
+        }
+        Ok(())
+    }
+
+    pub(super) fn need_path(&self, name: &str, command: &str) -> Result<PathBuf, CliError> {
+        let v = match name {
+            "data" => self.data.as_ref(),
+            "out" => self.out.as_ref(),
+            _ => self.models.last(),
+        };
+        v.cloned().ok_or_else(|| err(format!("{command}: --{name} is required (try 'rnerf help')")))
+    }
+
+    pub(super) fn prior_hints(&self) -> Result<Option<crate::train::prior::Prior>, CliError> {
+        if self.background.is_none() && (self.prior.is_some() || self.background_data.is_some()) {
+            return Err(err("--prior / --background-data need --background (they configure a residual model)"));
+        }
+        if self.mix.as_deref() == Some("sum") && self.prior.is_some_and(|p| p.region) {
+            return Err(err("--prior region needs --mix mixnet (the region sets the Mixnet's β)"));
+        }
+        Ok(self.prior)
+    }
+
+    pub(super) fn mix_kind(&self) -> Result<Option<crate::field::mix::MixKind>, CliError> {
+        use crate::field::mix::{DensityMix, MixKind};
+        if self.background.is_none() && (self.mix.is_some() || self.density_mix.is_some()) {
+            return Err(err("--mix / --density-mix need --background (they configure a residual model)"));
+        }
+        let density = match self.density_mix.as_deref() {
+            Some("activated") => DensityMix::Activated,
+            _ => DensityMix::Raw,
+        };
+        Ok(match self.mix.as_deref() {
+            Some("sum") if self.density_mix.is_some() => {
+                return Err(err("--density-mix applies to --mix mixnet, not sum"));
+            }
+            Some("sum") => Some(MixKind::Sum),
+            _ if self.background.is_some() => Some(MixKind::Mixnet(density)),
+            _ => None,
+        })
+    }
+
+    pub(super) fn mixnet_encoding(&self) -> Result<Option<crate::field::mixnet::MixnetEncoding>, CliError> {
+        use crate::field::mixnet::MixnetEncoding;
+        match self.mixnet_encoding.as_deref() {
+            None => Ok(None),
+            Some(_) if self.background.is_none() || self.mix.as_deref() == Some("sum") => {
+                Err(err("--mixnet-encoding needs --background and a Mixnet (not --mix sum)"))
+            }
+            Some("shared") => Ok(Some(MixnetEncoding::Shared)),
+            Some(_) => Ok(Some(MixnetEncoding::default())),
+        }
+    }
+
+    pub(super) fn depth(&self) -> Result<DepthMethod, CliError> {
+        use crate::render::DensityThreshold;
+        if self.m.is_some() && self.m_raw.is_some() {
+            return Err(err("--m and --m-raw exclude each other (σ units or raw network output)"));
+        }
+        match self.depth.as_deref() {
+            Some("expected") if self.m.is_some() || self.m_raw.is_some() => {
+                Err(err("--m / --m-raw apply to --depth threshold, not expected"))
+            }
+            Some("expected") => Ok(DepthMethod::Expected),
+            _ => Ok(DepthMethod::Threshold(match self.m_raw {
+                Some(s) => DensityThreshold::Raw(s),
+                None => self.m.map_or(DensityThreshold::DEFAULT, DensityThreshold::Sigma),
+            })),
+        }
+    }
+}
+
+fn text(p: &mut lexopt::Parser, name: &str) -> Result<String, CliError> {
+    let raw = p.value().map_err(|e| err(format!("--{name}: {e}")))?;
+    raw.into_string().map_err(|v| err(format!("--{name}: '{}' is not valid UTF-8", v.to_string_lossy())))
+}
+
+fn path(p: &mut lexopt::Parser, name: &str) -> Result<PathBuf, CliError> {
+    let raw = p.value().map_err(|e| err(format!("--{name}: {e}")))?;
+    if raw.is_empty() {
+        return Err(err(format!("--{name}: empty path")));
+    }
+    Ok(PathBuf::from(raw))
+}
+
+/// A finite number in `(lo, hi]`.
+fn finite(p: &mut lexopt::Parser, name: &str, lo: f32, hi: f32) -> Result<f32, CliError> {
+    let v: f32 = number(p, name)?;
+    if !(v.is_finite() && v > lo && v <= hi) {
+        return Err(err(format!("--{name}: {v} is outside ({lo}, {hi}]")));
+    }
+    Ok(v)
+}
+
+pub(super) fn describe(arg: &lexopt::Arg) -> String {
+    match arg {
+        lexopt::Arg::Short(c) => format!("'-{c}'"),
+        lexopt::Arg::Long(l) => format!("'--{l}'"),
+        lexopt::Arg::Value(v) => format!("'{}'", v.to_string_lossy()),
+    }
+}
+
+/// The value of `--name` parsed as a `T`, naming the flag in the error.
+fn number<T: std::str::FromStr>(p: &mut lexopt::Parser, name: &str) -> Result<T, CliError> {
+    let raw = p.value().map_err(|e| err(format!("--{name}: {e}")))?;
+    let s = raw.to_string_lossy();
+    s.parse().map_err(|_| err(format!("--{name}: '{s}' is not a valid value")))
+}
+
+/// Like [`number`], and at least 1.
+fn positive<T: std::str::FromStr + PartialOrd + From<u8>>(p: &mut lexopt::Parser, name: &str) -> Result<T, CliError> {
+    let v: T = number(p, name)?;
+    if v < T::from(1) {
+        return Err(err(format!("--{name}: must be at least 1")));
+    }
+    Ok(v)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The table, the parser and the usage text agree: every flag is parsed by [`Flags::take`]
+    /// (a value it refuses is an error, never the `unreachable!`), named in USAGE, and taken by
+    /// a command USAGE lists.
+    #[test]
+    fn every_flag_is_parsed_and_documented() {
+        for f in FLAGS {
+            assert!(super::super::USAGE.contains(&format!("--{}", f.name)), "--{} is not in USAGE", f.name);
+            assert!(f.commands.iter().all(|c| COMMANDS.contains(c)), "--{}: unknown command", f.name);
+            for value in ["1", "x"] {
+                let mut p = lexopt::Parser::from_args([value]);
+                let taken = std::panic::catch_unwind(move || {
+                    let mut flags = Flags::default();
+                    let _ = flags.take(f.name, &mut p);
+                });
+                assert!(taken.is_ok(), "--{} is in the table but not parsed", f.name);
+            }
+        }
+        for c in COMMANDS {
+            assert!(super::super::USAGE.contains(&format!("\n  {c} ")), "command {c} is not in USAGE");
+        }
+        let names: std::collections::BTreeSet<&str> = FLAGS.iter().map(|f| f.name).collect();
+        assert_eq!(names.len(), FLAGS.len(), "a flag is listed twice");
+    }
+}

@@ -1,0 +1,260 @@
+//! Command-line parsing for `rnerf` (DESIGN §4), kept in the library so it is tested and
+//! fuzzed like any other parser of untrusted input. Parsing never panics: every problem is a
+//! one-line [`CliError`] naming the flag.
+
+mod args;
+mod flags;
+mod usage;
+
+pub use args::{Command, CompareArgs, CropRule, TrainArgs};
+use flags::{describe, Flags, COMMANDS, FLAGS};
+use std::ffi::OsString;
+use std::fmt;
+pub use usage::USAGE;
+
+/// A command-line error: one line saying what is wrong and where.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct CliError(pub String);
+
+impl fmt::Display for CliError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for CliError {}
+
+fn err(msg: impl Into<String>) -> CliError {
+    CliError(msg.into())
+}
+
+/// Thresholds `rnerf compare` also scores the final models at (σ per dataset unit).
+pub const DEFAULT_M_SWEEP: [f32; 4] = [3.0, 10.0, 20.0, 40.0];
+
+/// Parses the arguments after the program name.
+pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliError> {
+    use lexopt::Arg::{Long, Short, Value};
+    let mut p = lexopt::Parser::from_args(args);
+    let command = match p.next().map_err(|e| err(e.to_string()))? {
+        None | Some(Long("help")) | Some(Short('h')) => return Ok(Command::Help),
+        Some(Value(v)) => {
+            v.into_string().map_err(|v| err(format!("command '{}' is not valid UTF-8", v.to_string_lossy())))?
+        }
+        Some(other) => return Err(err(format!("expected a command before {} (try 'rnerf help')", describe(&other)))),
+    };
+    let mut f = Flags::default();
+    match command.as_str() {
+        "help" => return Ok(Command::Help),
+        "import" => match p.next().map_err(|e| err(e.to_string()))? {
+            Some(Value(v)) if v == "colmap" => {}
+            _ => return Err(err("import: expected 'colmap' (rnerf import colmap --model DIR --images DIR --out DIR)")),
+        },
+        c if COMMANDS.contains(&c) => {}
+        other => return Err(err(format!("unknown command '{other}' (try 'rnerf help')"))),
+    }
+    let allowed = |name: &str| FLAGS.iter().any(|f| f.name == name && f.commands.contains(&command.as_str()));
+    while let Some(arg) = p.next().map_err(|e| err(e.to_string()))? {
+        match arg {
+            Long(name) if allowed(name) => {
+                let name = name.to_string();
+                f.take(&name, &mut p)?;
+            }
+            other => {
+                return Err(err(format!("{command}: unexpected argument {} (try 'rnerf help')", describe(&other))))
+            }
+        }
+    }
+    let threads = f.threads;
+    if f.resume.is_some() {
+        if let Some(s) = f.given.iter().find(|g| FLAGS.iter().any(|f| f.setting && f.name == g.as_str())) {
+            return Err(err(format!(
+                "train: --resume continues with the checkpoint's own settings; --{s} cannot change them"
+            )));
+        }
+    }
+    Ok(match command.as_str() {
+        "train" => Command::Train(TrainArgs {
+            data: f.need_path("data", &command)?,
+            out: f.need_path("out", &command)?,
+            split: f.split.clone().unwrap_or_else(|| "train".into()),
+            steps: f.steps,
+            rays: f.rays,
+            log2t: f.log2t,
+            seed: f.seed,
+            threads,
+            csv: f.csv.clone(),
+            background: f.background.clone(),
+            mix: f.mix_kind()?,
+            mixnet: f.mixnet_encoding()?,
+            distortion: f.distortion,
+            lr: f.lr,
+            near_grad: f.near_grad,
+            random_bg: f.fixed_background.then_some(false),
+            checkpoint_every: f.checkpoint_every,
+            resume: f.resume.clone(),
+            scene_views: f.scene_views,
+            prior: f.prior_hints()?,
+            background_data: f.background_data.clone(),
+            beta: f.beta,
+            region_floor: f.region_floor,
+            focus_share: f.focus_share,
+            region_vote: f.region_vote,
+            exposure_correction: f.exposure_correction,
+            frozen_stride: f.frozen_stride,
+        }),
+        "render" => Command::Render {
+            model: f.need_path("model", &command)?,
+            data: f.need_path("data", &command)?,
+            out: f.need_path("out", &command)?,
+            split: f.split.clone().unwrap_or_else(|| "test".into()),
+            depth: f.depth()?,
+            threads,
+        },
+        "eval" => Command::Eval {
+            model: f.need_path("model", &command)?,
+            data: f.need_path("data", &command)?,
+            split: f.split.clone().unwrap_or_else(|| "test".into()),
+            depth: f.depth()?,
+            crop: f.crop.unwrap_or(CropRule::Frame),
+            limit: f.limit,
+            json: f.json,
+            threads,
+        },
+        "compare" => Command::Compare(CompareArgs {
+            background: f
+                .background
+                .clone()
+                .ok_or_else(|| err("compare: --background is required (try 'rnerf help')"))?,
+            background_model: f.background_model.clone(),
+            scenes: if f.scenes.is_empty() {
+                return Err(err("compare: --scene is required (try 'rnerf help')"));
+            } else {
+                f.scenes.clone()
+            },
+            out: f.need_path("out", &command)?,
+            methods: f.methods.clone().unwrap_or_else(crate::compare::Method::defaults),
+            scene_views: f.scene_views,
+            steps: f.steps,
+            rays: f.rays,
+            log2t: f.log2t,
+            seed: f.seed,
+            eval_every: f.eval_every,
+            m: f.depth()?.threshold(),
+            m_sweep: f.m_sweep.clone().unwrap_or_else(|| {
+                DEFAULT_M_SWEEP.iter().map(|&v| crate::render::DensityThreshold::Sigma(v)).collect()
+            }),
+            threads,
+            beta: f.beta,
+            region_floor: f.region_floor,
+            focus_share: f.focus_share,
+            region_vote: f.region_vote,
+            exposure_correction: f.exposure_correction,
+            frozen_stride: f.frozen_stride,
+        }),
+        "demo" => Command::Demo { out: f.out.clone(), steps: f.steps, size: f.size, seed: f.seed, threads },
+        "import" => Command::ImportColmap(crate::data::colmap::ImportOptions {
+            model: f.need_path("model", "import colmap")?,
+            images: f.images.clone().ok_or_else(|| err("import colmap: --images is required (try 'rnerf help')"))?,
+            out: f.need_path("out", "import colmap")?,
+            background_match: f.background_match.clone(),
+            known_distance: f.known_distance.clone(),
+        }),
+        _ => {
+            if f.models.is_empty() != f.data.is_none() {
+                return Err(err(
+                    "bench: --model and --data go together (the model's camera is the data's first test view)",
+                ));
+            }
+            Command::Bench {
+                json: f.json,
+                reps: f.reps,
+                log2t: f.log2t,
+                threads,
+                models: f.models.clone(),
+                data: f.data.clone(),
+            }
+        }
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::PathBuf;
+
+    fn args(s: &str) -> Vec<OsString> {
+        s.split_whitespace().map(OsString::from).collect()
+    }
+
+    #[test]
+    fn usage_names_every_cpu_level() {
+        use crate::simd::CpuLevel;
+        let line = USAGE.lines().find(|l| l.contains("RNERF_CPU_LEVEL=")).expect("the environment line");
+        for level in [CpuLevel::Scalar, CpuLevel::Avx2, CpuLevel::Avx512, CpuLevel::Amx, CpuLevel::Neon] {
+            assert!(line.contains(level.name()), "`rnerf help` does not name {}", level.name());
+        }
+    }
+
+    #[test]
+    fn parses_commands_and_rejects_bad_values() {
+        assert_eq!(parse(args("")), Ok(Command::Help));
+        assert_eq!(parse(args("--help")), Ok(Command::Help));
+        assert_eq!(
+            parse(args("bench --json --reps 3 --log2t 15")),
+            Ok(Command::Bench {
+                json: true,
+                reps: Some(3),
+                log2t: Some(15),
+                threads: None,
+                models: vec![],
+                data: None
+            })
+        );
+        assert_eq!(
+            parse(args("demo --steps=20 --threads 1")),
+            Ok(Command::Demo { out: None, steps: Some(20), size: None, seed: None, threads: Some(1) })
+        );
+        match parse(args("compare --background b --scene s1 --scene s2 --out o --methods dex,residual-s --m 5")) {
+            Ok(Command::Compare(CompareArgs { scenes, methods, m, .. })) => {
+                assert_eq!(scenes, [PathBuf::from("s1"), PathBuf::from("s2")]);
+                assert_eq!(methods.len(), 2);
+                assert_eq!(m, crate::render::DensityThreshold::Sigma(5.0));
+            }
+            other => panic!("compare parsed as {other:?}"),
+        }
+        for (bad, needle) in [
+            ("bench --log2t 40", "--log2t: 40 is outside"),
+            ("bench --reps 0", "--reps: must be at least 1"),
+            ("bench --model m.safetensors", "bench: --model and --data go together"),
+            ("bench --data d", "bench: --model and --data go together"),
+            ("bench --reps many", "--reps: 'many' is not a valid value"),
+            ("demo --threads", "--threads"),
+            ("demo --frobnicate", "unexpected argument '--frobnicate'"),
+            ("train --data d", "--out is required"),
+            ("train --data d --out m --m 3", "unexpected argument '--m'"),
+            ("eval --model m --data d --m 3 --m-raw 3", "exclude each other"),
+            ("eval --model m --data d --m -1", "--m: -1 is outside"),
+            ("eval --model m --data d --m nan", "--m: NaN is outside"),
+            ("eval --model m --data d --crop huge", "--crop: 'huge'"),
+            ("render --model m --data d --out o --depth median", "--depth: 'median'"),
+            ("train --data d --out m --split ../x", "--split"),
+            ("train --data d --out m --mix sum", "need --background"),
+            ("train --data d --out m --background b --mix sum --density-mix raw", "applies to --mix mixnet"),
+            ("train --data d --out m --background b --mix blend", "--mix: 'blend'"),
+            ("trian", "unknown command 'trian'"),
+            ("compare --background b --out o", "--scene is required"),
+            ("train --data d --out m --mixnet-encoding shared", "needs --background"),
+            ("train --data d --out m --background b --mix sum --mixnet-encoding shared", "not --mix sum"),
+            ("train --data d --out m --background b --mixnet-encoding both", "--mixnet-encoding: 'both'"),
+            ("compare --background b --scene s --out o --methods dex,nerf", "--methods: 'nerf'"),
+            ("compare --background b --scene s --out o --methods dex,dex", "given twice"),
+            ("compare --background b --scene s --out o --m-sweep 3,x", "--m-sweep: 'x'"),
+            ("compare --background b --scene s --out o --depth expected", "unexpected argument '--depth'"),
+            ("--json", "expected a command"),
+        ] {
+            let e = parse(args(bad)).unwrap_err();
+            assert!(e.0.contains(needle), "{bad}: {e}");
+            assert!(!e.0.contains('\n'), "{bad}: error must be one line: {e}");
+        }
+    }
+}

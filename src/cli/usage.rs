@@ -1,0 +1,75 @@
+//! The text of `rnerf help`.
+
+/// Usage text printed by `rnerf help`.
+pub const USAGE: &str = "usage: rnerf <command> [options]
+
+commands:
+  train  --data DIR --out MODEL [--steps N] [--rays N] [--log2t N] [--seed S] [--threads N]
+         [--split NAME] [--csv FILE] [--lr LR] [--distortion L] [--near-grad D] [--fixed-background] [--background BG_MODEL [--mix mixnet|sum]
+         [--density-mix raw|activated] [--mixnet-encoding own|shared] [--prior all|none|warm-start,region,focus,beta,reach]
+         [--background-data BG_DIR] [--beta U,E] [--region-floor S|off] [--focus-share F]
+         [--region-vote V,S] [--frozen-stride N] [--exposure-correction on|off]] [--checkpoint-every N]
+         [--scene-views N]
+         train a NeRF on DIR's transforms_<split>.json (default split: train); with --background,
+         a Residual-NeRF (residual + Mixnet over the frozen background; --mix sum: Residual-NeRF-S),
+         by default background-aware (--prior all: start at the background, a change region voted
+         from change maps against BG_DIR's images at the same poses or the rendered background,
+         half the rays from changed pixels and the rest from pixels whose ray crosses the region,
+         the β regularisers at --beta's weights, default 0.02,0:
+         penalty on unchanged rays, entropy; --prior none: the paper's Residual-NeRF).
+         Checkpoints go to MODEL with '.ckpt' before the extension (every N steps, and on
+         SIGINT/SIGTERM, which then exit 130/143); a finished run removes its checkpoint
+  train  --resume CHECKPOINT --data DIR --out MODEL [--split NAME] [--csv FILE] [--threads N]
+         [--checkpoint-every N]
+         continue an interrupted run bit-exactly, with the checkpoint's settings, on the same data
+  render --model MODEL --data DIR --out DIR [--split NAME] [--depth threshold|expected]
+         [--m M | --m-raw S] [--threads N]
+         depth (EXR metres, 16-bit PNG mm, .npy metres, colourised PNG), PLY point cloud (world
+         frame) and RGB of the split's views
+  eval   --model MODEL --data DIR [--split NAME] [--depth threshold|expected] [--m M | --m-raw S]
+         [--crop frame|full|HALF] [--limit METRES] [--json] [--threads N]
+         depth MAE / RMSE / hole rate inside the crops, and PSNR (default split: test)
+  compare --background DIR --scene DIR [--scene DIR ...] --out DIR [--background-model MODEL]
+         [--methods dex,finetune,residual-paper,residual,...] [--scene-views N] [--steps N] [--rays N]
+         [--log2t N] [--seed S] [--eval-every N] [--m M | --m-raw S] [--m-sweep M,M,...] [--threads N]
+         [--beta U,E] [--region-floor S|off] [--focus-share F] [--region-vote V,S] [--frozen-stride N]
+         [--exposure-correction on|off]
+         (--m-sweep: also score the final models at these σ thresholds, default 3,10,20,40;
+         --beta: weights of the background-aware methods' β penalty and entropy;
+         --region-floor: lift the warm-started residual's raw density in the change region to S;
+         --focus-share: share of each step's rays drawn from changed pixels, default 0.5;
+         --region-vote: a cell is in the change region when at least S of all views see it and
+         at least V of those see a change there, default 0.5,0.25;
+         --frozen-stride: outside the change region one training sample stands for N marching
+         steps of the frozen background, default 1 (every step);
+         --exposure-correction: fit each scene image's exposure and white balance to the
+         background's before the change maps and training, default on;
+         methods: dex, finetune, residual, residual-no-warm-start, residual-no-region,
+         residual-no-focus, residual-no-reach, residual-no-beta, residual-activated, residual-activated-no-warm-start,
+         residual-paper, residual-paper-activated, residual-paper-shared,
+         residual-paper-activated-shared, residual-s)
+         the paper's protocol and more: train the background on DIR (or load MODEL), then per scene
+         Dex-NeRF (and NeRF's expected depth), the fine-tuned background, the paper's Residual-NeRF
+         and the background-aware Residual-NeRF; scored on the object mask, the near crop (< 1.5 m)
+         and the crop; writes table.md, table.json, curves.csv, <scene>/curves.png and
+         <scene>/depth_<i>.png side by side
+  import colmap --model SPARSE_DIR --images DIR --out DIR [--background-match TEXT]
+         [--known-distance IMAGE_A,IMAGE_B,METRES]
+         a COLMAP sparse model (cameras, images, points3D; .bin or .txt) as transforms_train.json
+         (OpenGL poses, the lens, a scene box from the points); with --background-match, images
+         whose name contains TEXT go to OUT/background and the rest to OUT/scene (one COLMAP run
+         registers both, as in the paper); --known-distance fixes the scale from the distance
+         between two images' camera centres (else COLMAP's unit is taken as a metre)
+  demo   [--out DIR] [--steps N] [--size PX] [--seed S] [--threads N]
+         synthesise a workspace and a glass object, then compare as above (default out: rnerf-demo)
+  bench  [--json] [--reps N] [--log2t N] [--threads N] [--model MODEL [--model MODEL] --data DIR]
+         throughput of the hot kernels on this machine (one JSON object with --json); with
+         --model, render_depth_ms_200[_residual] time these trained models (a NeRF, a residual
+         model) from the first test view of DIR instead of the bench's short-trained ones
+  help   this text
+
+threshold depth: --m M is a density sigma >= M per unit of the dataset's coordinates (per metre;
+  default 10);
+  --m-raw S compares the raw network output s >= S (sigma = exp(s)), as the authors' code does.
+environment: RNERF_CPU_LEVEL=scalar|avx2|avx512|amx|neon lowers the SIMD level (never raises it;
+  x86: scalar < avx2 < avx512 < amx, aarch64: scalar < neon)";
