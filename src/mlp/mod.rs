@@ -34,7 +34,13 @@ mod avx512;
 mod neon;
 pub mod scalar;
 
+mod dispatch;
+mod params;
+
 pub use activation::Activation;
+use dispatch::{first_column_fma, matmul, matmul_first, matmul_tn_acc, LayerWeights};
+pub use dispatch::{matmul_first_with, matmul_tn_acc_with, matmul_with};
+pub use params::{bf16_bits, pack_vnni, MlpParams};
 
 use crate::rng::Rng;
 use crate::simd::{CpuLevel, Isa};
@@ -80,29 +86,6 @@ pub struct Mlp<const W: usize> {
     config: MlpConfig,
     layers: Vec<LayerShape>,
     n_params: usize,
-}
-
-/// Rounds to bf16 (nearest even; NaN stays NaN), as `vcvtne2ps2bf16` does.
-pub fn bf16_bits(v: f32) -> u16 {
-    let b = v.to_bits();
-    if v.is_nan() {
-        return ((b >> 16) | 0x40) as u16;
-    }
-    (b.wrapping_add(0x7fff + ((b >> 16) & 1)) >> 16) as u16
-}
-
-/// Packs the `k × o` row-major matrix `w` for the tiles: bf16, `k` padded with zero rows to a
-/// multiple of 32, pairs of consecutive rows interleaved (`packed[(kk/2)·2o + 2j + kk%2] =
-/// w[kk][j]`), the layout `tdpbf16ps` reads its second operand in. Length `k.next_multiple_of(32) · o`.
-pub fn pack_vnni(w: &[f32], k: usize, o: usize, packed: &mut [u16]) {
-    let k32 = k.next_multiple_of(32);
-    assert!(w.len() >= k * o && packed.len() >= k32 * o, "pack_vnni: buffers too short");
-    packed[..k32 * o].fill(0);
-    for kk in 0..k {
-        for j in 0..o {
-            packed[(kk / 2) * 2 * o + 2 * j + kk % 2] = bf16_bits(w[kk * o + j]);
-        }
-    }
 }
 
 fn pad16(n: usize) -> usize {
@@ -441,103 +424,6 @@ fn narrow_output_backward(
     matmul(isa, dz, rows, c, wt, s.k, &mut ws.dx[..rows * s.k], false);
 }
 
-/// One layer's weights as the kernels of each level take them: `f32` (`k × o` row-major) for
-/// the fp32 levels, `bf16` (the same, packed by [`pack_vnni`]) for the AMX level.
-#[derive(Clone, Copy)]
-struct LayerWeights<'a> {
-    f32: &'a [f32],
-    bf16: &'a [u16],
-}
-
-fn matmul(isa: Isa, x: &[f32], rows: usize, k: usize, w: LayerWeights, o: usize, out: &mut [f32], relu: bool) {
-    match isa.level() {
-        #[cfg(target_arch = "x86_64")]
-        CpuLevel::Avx2 => avx2::matmul(isa, x, rows, k, w.f32, o, out, relu),
-        #[cfg(target_arch = "x86_64")]
-        CpuLevel::Avx512 => avx512::matmul(isa, x, rows, k, w.f32, o, out, relu),
-        #[cfg(target_arch = "x86_64")]
-        CpuLevel::Amx => amx::matmul(isa, x, rows, k, w.bf16, o, out, relu),
-        #[cfg(target_arch = "aarch64")]
-        CpuLevel::Neon => neon::matmul(isa, x, rows, k, w.f32, o, out, relu),
-        _ => scalar::matmul(x, rows, k, w.f32, o, out, relu),
-    }
-}
-
-fn matmul_first(isa: Isa, x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: &mut [f32], relu: bool) {
-    match isa.level() {
-        #[cfg(target_arch = "x86_64")]
-        CpuLevel::Avx2 | CpuLevel::Avx512 => avx2::matmul_first(isa, x, rows, k, w, o, out, relu),
-        #[cfg(target_arch = "x86_64")]
-        CpuLevel::Amx => {
-            // Column 0 of the tile product (forward_first does not come here: it runs the
-            // whole forward at this level).
-            let mut full = vec![0.0; rows * o];
-            matmul_with(isa, x, rows, k, w, o, &mut full, relu);
-            out[..rows].iter_mut().zip(full.chunks_exact(o)).for_each(|(y, r)| *y = r[0]);
-        }
-        #[cfg(target_arch = "aarch64")]
-        CpuLevel::Neon => neon::matmul_first(isa, x, rows, k, w, o, out, relu),
-        _ => scalar::matmul_first(x, rows, k, w, o, out, relu),
-    }
-}
-
-/// Rows `rows` of the SIMD first-column kernels one at a time (their remainder rows), with the
-/// fused multiply-add chain each of their lanes runs — so the same bits as those lanes.
-#[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
-#[inline(always)]
-fn first_column_fma(
-    x: &[f32],
-    k: usize,
-    w: &[f32],
-    o: usize,
-    rows: std::ops::Range<usize>,
-    out: &mut [f32],
-    relu: bool,
-) {
-    for b in rows {
-        let row = &x[b * k..(b + 1) * k];
-        let acc = row.iter().enumerate().fold(0.0f32, |acc, (kk, &xv)| xv.mul_add(w[kk * o], acc));
-        out[b] = if relu { acc.max(0.0) } else { acc };
-    }
-}
-
-fn matmul_tn_acc(isa: Isa, x: &[f32], rows: usize, k: usize, dz: &[f32], o: usize, dw: &mut [f32]) {
-    match isa.level() {
-        #[cfg(target_arch = "x86_64")]
-        CpuLevel::Avx2 => avx2::matmul_tn_acc(isa, x, rows, k, dz, o, dw),
-        #[cfg(target_arch = "x86_64")]
-        CpuLevel::Avx512 => avx512::matmul_tn_acc(isa, x, rows, k, dz, o, dw),
-        #[cfg(target_arch = "x86_64")]
-        CpuLevel::Amx => amx::matmul_tn_acc(isa, x, rows, k, dz, o, dw),
-        #[cfg(target_arch = "aarch64")]
-        CpuLevel::Neon => neon::matmul_tn_acc(isa, x, rows, k, dz, o, dw),
-        _ => scalar::matmul_tn_acc(x, rows, k, dz, o, dw),
-    }
-}
-
-/// The public face of the layer kernels, for tests and benchmarks: `out = relu?(x·W)`.
-pub fn matmul_with(isa: Isa, x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: &mut [f32], relu: bool) {
-    assert!(o.is_multiple_of(16) && k.is_multiple_of(4), "matmul: o must be a multiple of 16, k of 4");
-    let mut packed = Vec::new();
-    if !isa.level().mlp_is_fp32() {
-        packed.resize(k.next_multiple_of(32) * o, 0);
-        pack_vnni(w, k, o, &mut packed);
-    }
-    matmul(isa, x, rows, k, LayerWeights { f32: w, bf16: &packed }, o, out, relu)
-}
-
-/// The public face of the first-column kernel, for tests and benchmarks: `out[b] = relu?(x[b]·W[:, 0])`.
-pub fn matmul_first_with(isa: Isa, x: &[f32], rows: usize, k: usize, w: &[f32], o: usize, out: &mut [f32], relu: bool) {
-    assert!(o.is_multiple_of(16) && k.is_multiple_of(8), "matmul_first: o must be a multiple of 16, k of 8");
-    matmul_first(isa, x, rows, k, w, o, out, relu)
-}
-
-/// The public face of the weight-gradient kernel, for tests and benchmarks: `dw += xᵀ·dz`.
-pub fn matmul_tn_acc_with(isa: Isa, x: &[f32], rows: usize, k: usize, dz: &[f32], o: usize, dw: &mut [f32]) {
-    assert!(o.is_multiple_of(16) && k.is_multiple_of(4), "matmul_tn_acc: o must be a multiple of 16, k of 4");
-    matmul_tn_acc(isa, x, rows, k, dz, o, dw)
-}
-
 /// What [`Mlp::forward`] saves for [`Mlp::backward`]: every layer's activated output.
 /// Reused across calls; it allocates only when a batch is larger than any before.
 #[derive(Clone, Debug, Default)]
@@ -630,99 +516,6 @@ impl MlpWorkspace {
             self.narrow_dz.resize(TILE * out, 0.0);
             self.narrow_dwt.resize(out * widest, 0.0);
         }
-    }
-}
-
-/// An MLP's weights (flat, layer views as in [`Mlp::layers`]) and their per-layer transposes,
-/// which backward needs for dL/dx = dz·Wᵀ. Like the hash grid's fp16 mirror, the transposed
-/// copy is rewritten once per optimiser step ([`MlpParams::sync`]), not once per batch;
-/// [`MlpParams::weights_mut`] marks it stale and backward refuses stale weights.
-#[derive(Clone, Debug, PartialEq)]
-pub struct MlpParams {
-    weights: Vec<f32>,
-    transposed: Vec<f32>,
-    /// Per layer, `W` and `Wᵀ` rounded to bf16 and packed for the AMX level ([`pack_vnni`]),
-    /// at `packed_at[l]`: rewritten with the transposed copy.
-    packed: Vec<u16>,
-    packed_t: Vec<u16>,
-    packed_at: Vec<(usize, usize)>,
-    layers: Vec<LayerShape>,
-    synced: bool,
-}
-
-impl MlpParams {
-    /// Wraps `weights` (length [`Mlp::n_params`]) for `mlp`.
-    pub fn new<const W: usize>(mlp: &Mlp<W>, weights: Vec<f32>) -> MlpParams {
-        assert_eq!(weights.len(), mlp.n_params(), "mlp: parameter buffer has the wrong length");
-        let (mut at, mut at_t) = (0, 0);
-        let packed_at: Vec<(usize, usize)> = mlp
-            .layers
-            .iter()
-            .map(|l| {
-                let here = (at, at_t);
-                at += l.k.next_multiple_of(32) * l.o;
-                at_t += l.o.next_multiple_of(32) * l.k;
-                here
-            })
-            .collect();
-        let mut p = MlpParams {
-            transposed: vec![0.0; weights.len()],
-            weights,
-            packed: vec![0; at],
-            packed_t: vec![0; at_t],
-            packed_at,
-            layers: mlp.layers.clone(),
-            synced: false,
-        };
-        p.sync();
-        p
-    }
-
-    /// Layer `l`'s weights for the kernels.
-    fn layer(&self, l: usize) -> LayerWeights<'_> {
-        let s = self.layers[l];
-        let at = self.packed_at[l].0;
-        LayerWeights {
-            f32: &self.weights[s.offset..s.offset + s.k * s.o],
-            bf16: &self.packed[at..at + s.k.next_multiple_of(32) * s.o],
-        }
-    }
-
-    /// Layer `l`'s `Wᵀ` (`o × k`) for the kernels.
-    fn layer_transposed(&self, l: usize) -> LayerWeights<'_> {
-        let s = self.layers[l];
-        let at = self.packed_at[l].1;
-        LayerWeights {
-            f32: &self.transposed[s.offset..s.offset + s.k * s.o],
-            bf16: &self.packed_t[at..at + s.o.next_multiple_of(32) * s.k],
-        }
-    }
-
-    /// The weights.
-    pub fn weights(&self) -> &[f32] {
-        &self.weights
-    }
-
-    /// Mutable weights (for the optimiser); call [`MlpParams::sync`] before the next backward.
-    pub fn weights_mut(&mut self) -> &mut [f32] {
-        self.synced = false;
-        &mut self.weights
-    }
-
-    /// Rewrites the transposed copy and the bf16 packs from the weights.
-    pub fn sync(&mut self) {
-        for (l, &(at, at_t)) in self.layers.iter().zip(&self.packed_at) {
-            for kk in 0..l.k {
-                for j in 0..l.o {
-                    self.transposed[l.offset + j * l.k + kk] = self.weights[l.offset + kk * l.o + j];
-                }
-            }
-            let w = &self.weights[l.offset..l.offset + l.k * l.o];
-            pack_vnni(w, l.k, l.o, &mut self.packed[at..]);
-            let wt = &self.transposed[l.offset..l.offset + l.k * l.o];
-            pack_vnni(wt, l.o, l.k, &mut self.packed_t[at_t..]);
-        }
-        self.synced = true;
     }
 }
 
