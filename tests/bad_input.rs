@@ -380,6 +380,12 @@ fn catalogue() -> Vec<Case> {
             &["--resume", "--steps"],
         ),
         case(
+            "resume with a new prior setting",
+            |_| {},
+            "train --resume {d}/c --data {d} --out {d}/m.safetensors --focus-share 0.3",
+            &["--resume", "--focus-share"],
+        ),
+        case(
             "resume of a finished model",
             |d| {
                 dataset(&d.join("data"), &good_json());

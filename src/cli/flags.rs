@@ -7,7 +7,8 @@ use crate::render::DepthMethod;
 use std::path::PathBuf;
 
 /// A flag: its name (`--name`), the commands that take it, and whether it is a training setting
-/// a checkpoint fixes (`train --resume` refuses it).
+/// a checkpoint fixes (`train --resume` refuses it rather than ignore it: the background prior's
+/// flags too, since a resumed run does not recompute the prior).
 pub(super) struct Flag {
     pub(super) name: &'static str,
     pub(super) commands: &'static [&'static str],
@@ -40,14 +41,14 @@ pub(super) const FLAGS: &[Flag] = &[
     Flag { name: "checkpoint-every", commands: &["train"], setting: false },
     Flag { name: "resume", commands: &["train"], setting: false },
     Flag { name: "scene-views", commands: &["train", "compare"], setting: false },
-    Flag { name: "prior", commands: &["train"], setting: false },
-    Flag { name: "background-data", commands: &["train"], setting: false },
-    Flag { name: "beta", commands: &["train", "compare"], setting: false },
-    Flag { name: "region-floor", commands: &["train", "compare"], setting: false },
-    Flag { name: "focus-share", commands: &["train", "compare"], setting: false },
-    Flag { name: "region-vote", commands: &["train", "compare"], setting: false },
+    Flag { name: "prior", commands: &["train"], setting: true },
+    Flag { name: "background-data", commands: &["train"], setting: true },
+    Flag { name: "beta", commands: &["train", "compare"], setting: true },
+    Flag { name: "region-floor", commands: &["train", "compare"], setting: true },
+    Flag { name: "focus-share", commands: &["train", "compare"], setting: true },
+    Flag { name: "region-vote", commands: &["train", "compare"], setting: true },
     Flag { name: "frozen-stride", commands: &["train", "compare"], setting: true },
-    Flag { name: "exposure-correction", commands: &["train", "compare"], setting: false },
+    Flag { name: "exposure-correction", commands: &["train", "compare"], setting: true },
     Flag { name: "model", commands: &["render", "eval", "import", "bench"], setting: false },
     Flag { name: "depth", commands: &["render", "eval"], setting: false },
     Flag { name: "m", commands: &["render", "eval", "compare"], setting: false },
