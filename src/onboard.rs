@@ -64,6 +64,9 @@ pub struct DepthRenderer {
     /// cell value it keeps (built once per threshold).
     solid: Option<(f32, OccupancyGrid)>,
     solid_fraction: f32,
+    /// The last intrinsics whose lens passed [`crate::geometry::Distortion::check`]: a robot
+    /// renders one camera frame after frame, so the check runs once per camera, not per frame.
+    checked_lens: Option<Intrinsics>,
     /// Colour behind the scene for [`Extras::rgb`]. Defaults to white.
     pub background: [f32; 3],
 }
@@ -85,6 +88,7 @@ impl DepthRenderer {
             isa: Isa::detect(),
             solid: None,
             solid_fraction: SOLID_FRACTION,
+            checked_lens: None,
             background: [1.0; 3],
         }
     }
@@ -181,9 +185,12 @@ impl DepthRenderer {
                 k.fx, k.fy, k.cx, k.cy
             )));
         }
-        k.distortion
-            .check(k.width, k.height, k.fx, k.fy, k.cx, k.cy)
-            .map_err(|m| Error::bad_input(format!("intrinsics: {m}")))?;
+        if !k.distortion.is_none() && self.checked_lens != Some(*k) {
+            k.distortion
+                .check(k.width, k.height, k.fx, k.fy, k.cx, k.cy)
+                .map_err(|m| Error::bad_input(format!("intrinsics: {m}")))?;
+            self.checked_lens = Some(*k);
+        }
         if !(pose.translation.is_finite() && pose.rotation.is_finite()) {
             return Err(Error::bad_input("pose holds a non-finite value"));
         }

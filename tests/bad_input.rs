@@ -121,6 +121,23 @@ fn frame_case(name: &'static str, frame: Value, needles: &'static [&'static str]
     )
 }
 
+/// `rnerf import colmap` of a model folder holding `files` (name, contents) and an empty
+/// images folder.
+fn colmap_case(name: &'static str, files: &'static [(&str, &[u8])], needles: &'static [&'static str]) -> Case {
+    case(
+        name,
+        move |d| {
+            std::fs::create_dir_all(d.join("sparse")).unwrap();
+            std::fs::create_dir_all(d.join("images")).unwrap();
+            for (file, bytes) in files {
+                std::fs::write(d.join("sparse").join(file), bytes).unwrap();
+            }
+        },
+        "import colmap --model {d}/sparse --images {d}/images --out {d}/out",
+        needles,
+    )
+}
+
 fn image_case(name: &'static str, bytes: fn() -> Vec<u8>, needles: &'static [&'static str]) -> Case {
     case(
         name,
@@ -227,36 +244,22 @@ fn catalogue() -> Vec<Case> {
             TRAIN,
             &["a.png", "frame 0", "4x4", "w=8"],
         ),
-        case(
+        colmap_case(
             "colmap: unknown camera model",
-            |d| {
-                std::fs::create_dir_all(d.join("sparse")).unwrap();
-                std::fs::create_dir_all(d.join("images")).unwrap();
-                std::fs::write(d.join("sparse/cameras.txt"), "# c\n1 FULL_OPENCV 4 4 1 1 2 2 0 0 0 0 0 0 0 0\n").unwrap();
-                std::fs::write(d.join("sparse/images.txt"), "1 1 0 0 0 0 0 1 1 a.png\n\n").unwrap();
-            },
-            "import colmap --model {d}/sparse --images {d}/images --out {d}/out",
+            &[
+                ("cameras.txt", b"# c\n1 FULL_OPENCV 4 4 1 1 2 2 0 0 0 0 0 0 0 0\n"),
+                ("images.txt", b"1 1 0 0 0 0 0 1 1 a.png\n\n"),
+            ],
             &["cameras.txt", "line 2", "FULL_OPENCV"],
         ),
-        case(
+        colmap_case(
             "colmap: image missing",
-            |d| {
-                std::fs::create_dir_all(d.join("sparse")).unwrap();
-                std::fs::create_dir_all(d.join("images")).unwrap();
-                std::fs::write(d.join("sparse/cameras.txt"), "1 PINHOLE 4 4 3 3 2 2\n").unwrap();
-                std::fs::write(d.join("sparse/images.txt"), "1 1 0 0 0 0 0 1 1 a.png\n\n").unwrap();
-            },
-            "import colmap --model {d}/sparse --images {d}/images --out {d}/out",
+            &[("cameras.txt", b"1 PINHOLE 4 4 3 3 2 2\n"), ("images.txt", b"1 1 0 0 0 0 0 1 1 a.png\n\n")],
             &["a.png", "is not in"],
         ),
-        case(
+        colmap_case(
             "colmap: truncated binary model",
-            |d| {
-                std::fs::create_dir_all(d.join("sparse")).unwrap();
-                std::fs::create_dir_all(d.join("images")).unwrap();
-                std::fs::write(d.join("sparse/cameras.bin"), [1u8, 0, 0, 0, 0, 0, 0, 0, 1, 0]).unwrap();
-            },
-            "import colmap --model {d}/sparse --images {d}/images --out {d}/out",
+            &[("cameras.bin", &[1, 0, 0, 0, 0, 0, 0, 0, 1, 0])],
             &["cameras.bin", "truncated"],
         ),
         case("missing data directory", |_| {}, TRAIN, &["data", "not found"]),

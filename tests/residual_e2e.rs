@@ -76,7 +76,7 @@ fn residual_nerf_beats_dex_nerf_in_the_glass_crop() {
 }
 
 /// Both captures through a lens (OpenCV's radial-tangential model; the image corners move by
-/// ~1.5 px at 24 px), scored on pinhole test views: each method's glass-crop error stays within
+/// ~1 px at 24 px by the model's equations), scored on pinhole test views: each method's glass-crop error stays within
 /// 1.5× + 5 mm of what it reaches through a pinhole at the same seed. (At this size the two
 /// methods are close through the lens — 0.75 against 0.74 m on the AVX-512 host — so which one
 /// wins is not asserted here; the lens's geometry is tested exactly in `tests/camera.rs` and

@@ -105,7 +105,7 @@ pub(super) fn run(a: &crate::cli::CompareArgs) -> Result<(), String> {
         mixnet_grid: crate::field::mixnet::default_mixnet_grid(),
         m: a.m,
         m_sweep: a.m_sweep.clone(),
-        prior: prior_config(a.beta, a.region_floor, a.focus_share, a.region_vote, a.exposure_correction),
+        prior: a.prior_settings.config(),
         models: None,
     };
     let isa = Isa::detect();
@@ -322,30 +322,4 @@ pub(super) fn demo(out: &Path, steps: Option<u32>, size: Option<u32>, seed: Opti
         out.join("render").display(),
     );
     Ok(())
-}
-
-/// The prior's settings with `--beta U,E`, `--region-floor S|off`, `--focus-share F`,
-/// `--region-vote V,S` and `--exposure-correction on|off` applied.
-pub fn prior_config(
-    beta: Option<(f32, f32)>,
-    floor: Option<Option<f32>>,
-    focus_share: Option<f32>,
-    region_vote: Option<(f32, f32)>,
-    exposure_correction: Option<bool>,
-) -> crate::train::prior::PriorConfig {
-    let mut p = crate::train::prior::PriorConfig::default();
-    p.exposure = exposure_correction.unwrap_or(p.exposure);
-    if let Some((vote, seen)) = region_vote {
-        (p.vote, p.min_seen) = (vote, seen);
-    }
-    if let Some(share) = focus_share {
-        p.change_share = share;
-    }
-    if let Some((unchanged, entropy)) = beta {
-        (p.beta.unchanged, p.beta.entropy) = (unchanged, entropy);
-    }
-    if let Some(floor) = floor {
-        p.lift = floor.map(|floor| crate::train::lift::LiftConfig { floor, ..Default::default() });
-    }
-    p
 }

@@ -155,13 +155,7 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
                 "rnerf train: residual model over {} ({kind:?}, Mixnet encoding {mixnet:?}, background hints {hints:?})",
                 bg_path.display()
             );
-            let pcfg = crate::app::compare::prior_config(
-                a.beta,
-                a.region_floor,
-                a.focus_share,
-                a.region_vote,
-                a.exposure_correction,
-            );
+            let pcfg = a.prior_settings.config();
             let prior = (hints != Prior::NONE).then(|| {
                 let bg_views = match &a.background_data {
                     Some(dir) => {
@@ -256,10 +250,7 @@ fn apply_corrections(views: &mut [crate::data::View], json: &str) -> Result<(), 
         ));
     }
     for (v, r) in views.iter_mut().zip(rows) {
-        let c = ColourCorrection { gain: r };
-        if c != ColourCorrection::IDENTITY {
-            v.rgb.iter_mut().for_each(|x| *x = c.apply(*x));
-        }
+        *v = ColourCorrection { gain: r }.view(v);
     }
     Ok(())
 }

@@ -1,6 +1,7 @@
 //! What a parsed command line is: the [`Command`] and the arguments of the larger commands.
 
 use crate::render::DepthMethod;
+use crate::train::prior::PriorConfig;
 use std::path::PathBuf;
 
 /// Scoring crop of `rnerf eval`.
@@ -130,18 +131,9 @@ pub struct TrainArgs {
     /// The background's dataset, whose images at the scene's poses give the change maps
     /// (`--background-data`; without it the background model is rendered at those poses).
     pub background_data: Option<PathBuf>,
-    /// Weights of the β penalty on unchanged rays and of the β entropy (`--beta U,E`).
-    pub beta: Option<(f32, f32)>,
-    /// The residual's density floor in the change region (`--region-floor S|off`).
-    pub region_floor: Option<Option<f32>>,
-    /// Share of each step's rays drawn from changed pixels (`--focus-share F`).
-    pub focus_share: Option<f32>,
-    /// The region's vote: share of the seeing views that must see a change, share of all
-    /// views that must see the cell (`--region-vote V,S`).
-    pub region_vote: Option<(f32, f32)>,
-    /// Whether the scene images are corrected to the background's exposure and white balance
-    /// (`--exposure-correction on|off`; default on).
-    pub exposure_correction: Option<bool>,
+    /// The background prior's settings (`--beta`, `--region-floor`, `--focus-share`,
+    /// `--region-vote`, `--exposure-correction`).
+    pub prior_settings: PriorArgs,
     /// Lattice steps per training sample outside a residual model's change region
     /// (`--frozen-stride N`).
     pub frozen_stride: Option<u32>,
@@ -180,6 +172,18 @@ pub struct CompareArgs {
     pub m_sweep: Vec<crate::render::DensityThreshold>,
     /// Worker threads (`--threads`).
     pub threads: Option<usize>,
+    /// The background prior's settings (`--beta`, `--region-floor`, `--focus-share`,
+    /// `--region-vote`, `--exposure-correction`).
+    pub prior_settings: PriorArgs,
+    /// Lattice steps per training sample outside a residual model's change region
+    /// (`--frozen-stride N`).
+    pub frozen_stride: Option<u32>,
+}
+
+/// The background prior's settings `rnerf train` and `rnerf compare` share; each `None` keeps
+/// [`PriorConfig`]'s default.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PriorArgs {
     /// Weights of the β penalty on unchanged rays and of the β entropy (`--beta U,E`).
     pub beta: Option<(f32, f32)>,
     /// The residual's density floor in the change region (`--region-floor S|off`).
@@ -192,7 +196,25 @@ pub struct CompareArgs {
     /// Whether the scene images are corrected to the background's exposure and white balance
     /// (`--exposure-correction on|off`; default on).
     pub exposure_correction: Option<bool>,
-    /// Lattice steps per training sample outside a residual model's change region
-    /// (`--frozen-stride N`).
-    pub frozen_stride: Option<u32>,
+}
+
+impl PriorArgs {
+    /// [`PriorConfig::default`] with the given settings applied.
+    pub fn config(&self) -> PriorConfig {
+        let mut p = PriorConfig::default();
+        p.exposure = self.exposure_correction.unwrap_or(p.exposure);
+        if let Some((vote, seen)) = self.region_vote {
+            (p.vote, p.min_seen) = (vote, seen);
+        }
+        if let Some(share) = self.focus_share {
+            p.change_share = share;
+        }
+        if let Some((unchanged, entropy)) = self.beta {
+            (p.beta.unchanged, p.beta.entropy) = (unchanged, entropy);
+        }
+        if let Some(floor) = self.region_floor {
+            p.lift = floor.map(|floor| crate::train::lift::LiftConfig { floor, ..Default::default() });
+        }
+        p
+    }
 }

@@ -188,13 +188,7 @@ impl Flags {
                 }
             }
             "resume" => self.resume = Some(path(p, name)?),
-            "exposure-correction" => {
-                self.exposure_correction = Some(match text(p, name)?.as_str() {
-                    "on" => true,
-                    "off" => false,
-                    other => return Err(err(format!("--exposure-correction: '{other}' is not on or off"))),
-                })
-            }
+            "exposure-correction" => self.exposure_correction = Some(choice(p, name, &["on", "off"])? == "on"),
             "images" => self.images = Some(path(p, name)?),
             "background-match" => {
                 let s = text(p, name)?;
@@ -245,27 +239,9 @@ impl Flags {
                 }
                 self.methods = Some(methods);
             }
-            "mix" => {
-                let s = text(p, name)?;
-                if s != "mixnet" && s != "sum" {
-                    return Err(err(format!("--mix: '{s}' is not 'mixnet' or 'sum'")));
-                }
-                self.mix = Some(s);
-            }
-            "density-mix" => {
-                let s = text(p, name)?;
-                if s != "raw" && s != "activated" {
-                    return Err(err(format!("--density-mix: '{s}' is not 'raw' or 'activated'")));
-                }
-                self.density_mix = Some(s);
-            }
-            "mixnet-encoding" => {
-                let s = text(p, name)?;
-                if s != "own" && s != "shared" {
-                    return Err(err(format!("--mixnet-encoding: '{s}' is not 'own' or 'shared'")));
-                }
-                self.mixnet_encoding = Some(s);
-            }
+            "mix" => self.mix = Some(choice(p, name, &["mixnet", "sum"])?),
+            "density-mix" => self.density_mix = Some(choice(p, name, &["raw", "activated"])?),
+            "mixnet-encoding" => self.mixnet_encoding = Some(choice(p, name, &["own", "shared"])?),
             "split" => {
                 let s = text(p, name)?;
                 if s.is_empty() || !s.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') {
@@ -298,13 +274,7 @@ impl Flags {
             "seed" => self.seed = Some(number(p, name)?),
             "threads" => self.threads = Some(positive(p, name)?),
             "reps" => self.reps = Some(positive(p, name)?),
-            "depth" => {
-                let s = text(p, name)?;
-                if s != "threshold" && s != "expected" {
-                    return Err(err(format!("--depth: '{s}' is not 'threshold' or 'expected'")));
-                }
-                self.depth = Some(s);
-            }
+            "depth" => self.depth = Some(choice(p, name, &["threshold", "expected"])?),
             "m" => self.m = Some(finite(p, name, 0.0, 1e9)?),
             "m-raw" => self.m_raw = Some(finite(p, name, -1e3, 1e3)?),
             "limit" => self.limit = Some(finite(p, name, 0.0, 1e6)?),
@@ -350,6 +320,16 @@ impl Flags {
             _ => unreachable!("flag list and take() disagree on --{name}"),
         }
         Ok(())
+    }
+
+    pub(super) fn prior_args(&self) -> super::PriorArgs {
+        super::PriorArgs {
+            beta: self.beta,
+            region_floor: self.region_floor,
+            focus_share: self.focus_share,
+            region_vote: self.region_vote,
+            exposure_correction: self.exposure_correction,
+        }
     }
 
     pub(super) fn need_path(&self, name: &str, command: &str) -> Result<PathBuf, CliError> {
@@ -418,6 +398,16 @@ impl Flags {
             })),
         }
     }
+}
+
+/// The value of `--name`, one of `options` (the error lists them: `'a' or 'b'`).
+fn choice(p: &mut lexopt::Parser, name: &str, options: &[&str]) -> Result<String, CliError> {
+    let s = text(p, name)?;
+    if options.contains(&s.as_str()) {
+        return Ok(s);
+    }
+    let list: Vec<String> = options.iter().map(|o| format!("'{o}'")).collect();
+    Err(err(format!("--{name}: '{s}' is not {}", list.join(" or "))))
 }
 
 fn text(p: &mut lexopt::Parser, name: &str) -> Result<String, CliError> {

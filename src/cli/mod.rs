@@ -6,7 +6,7 @@ mod args;
 mod flags;
 mod usage;
 
-pub use args::{Command, CompareArgs, CropRule, TrainArgs};
+pub use args::{Command, CompareArgs, CropRule, PriorArgs, TrainArgs};
 use flags::{describe, Flags, COMMANDS, FLAGS};
 use std::ffi::OsString;
 use std::fmt;
@@ -95,11 +95,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             scene_views: f.scene_views,
             prior: f.prior_hints()?,
             background_data: f.background_data.clone(),
-            beta: f.beta,
-            region_floor: f.region_floor,
-            focus_share: f.focus_share,
-            region_vote: f.region_vote,
-            exposure_correction: f.exposure_correction,
+            prior_settings: f.prior_args(),
             frozen_stride: f.frozen_stride,
         }),
         "render" => Command::Render {
@@ -144,11 +140,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
                 DEFAULT_M_SWEEP.iter().map(|&v| crate::render::DensityThreshold::Sigma(v)).collect()
             }),
             threads,
-            beta: f.beta,
-            region_floor: f.region_floor,
-            focus_share: f.focus_share,
-            region_vote: f.region_vote,
-            exposure_correction: f.exposure_correction,
+            prior_settings: f.prior_args(),
             frozen_stride: f.frozen_stride,
         }),
         "demo" => Command::Demo { out: f.out.clone(), steps: f.steps, size: f.size, seed: f.seed, threads },

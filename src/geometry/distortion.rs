@@ -37,7 +37,7 @@ pub enum Distortion {
     },
 }
 
-/// Newton iterations of the undistortion; it converges in 3–6 on real lenses.
+/// Newton iterations of the undistortion at most (the loop stops at [`TOLERANCE`]).
 const ITERATIONS: usize = 20;
 /// Convergence tolerance of the undistortion in normalised image units (≈ 10⁻⁷ px at f = 1000).
 const TOLERANCE: f64 = 1e-10;

@@ -133,7 +133,7 @@ pub const IDENTITY_GAIN: f32 = 0.02;
 /// A per-channel gain `c ↦ gain·c`, clamped to [0, 1]: an exposure and white-balance change.
 /// Both act on the captured colours as a per-channel factor (in linear light, and through a
 /// power-law encoding, `(g·L)^γ = g^γ·L^γ`), so no offset is fitted: with one, a large shadow
-/// trades gain for offset (measured on the dev set's bottle: gains 0.90, offsets 0.09).
+/// trades gain for offset (docs/DECISIONS.md, "Real captures").
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ColourCorrection {
     /// Per-channel gain.
@@ -147,6 +147,14 @@ impl ColourCorrection {
     /// `c` corrected.
     pub fn apply(&self, c: [f32; 3]) -> [f32; 3] {
         std::array::from_fn(|k| (self.gain[k] * c[k]).clamp(0.0, 1.0))
+    }
+
+    /// `v` with its image corrected (a copy of `v` for the identity).
+    pub fn view(&self, v: &View) -> View {
+        match *self == ColourCorrection::IDENTITY {
+            true => v.clone(),
+            false => View { rgb: v.rgb.iter().map(|&x| self.apply(x)).collect(), ..v.clone() },
+        }
     }
 
     /// Whether it is within [`IDENTITY_GAIN`] of the identity.
@@ -202,14 +210,7 @@ impl ScenePrior {
     /// image through its [`ColourCorrection`] (views whose correction is the identity are
     /// returned as they are).
     pub fn corrected_views(&self, views: &[View]) -> Vec<View> {
-        views
-            .iter()
-            .zip(&self.corrections)
-            .map(|(v, c)| match *c == ColourCorrection::IDENTITY {
-                true => v.clone(),
-                false => View { rgb: v.rgb.iter().map(|&x| c.apply(x)).collect(), ..v.clone() },
-            })
-            .collect()
+        views.iter().zip(&self.corrections).map(|(v, c)| c.view(v)).collect()
     }
 
     /// How many views' images are corrected.
@@ -479,7 +480,7 @@ pub fn scene_prior(
             let (w, h) = (v.intrinsics.width, v.intrinsics.height);
             match *c == ColourCorrection::IDENTITY {
                 true => change_map(&v.rgb, colours, w, h, cfg),
-                false => change_map(&v.rgb.iter().map(|&x| c.apply(x)).collect::<Vec<_>>(), colours, w, h, cfg),
+                false => change_map(&c.view(v).rgb, colours, w, h, cfg),
             }
         })
         .collect();
