@@ -6,7 +6,8 @@
 //!
 //! ```text
 //! cargo run --release --example capture_trials [SIZE [STEPS [TRIALS]]]
-//! cargo run --release --example capture_trials 96 600 none,radial,radial-ignored,fisheye,exposure,exposure-uncorrected,pose2,pose5
+//! cargo run --release --example capture_trials 96 600 none,radial,radial-ignored,fisheye,exposure,exposure-uncorrected
+//! cargo run --release --example capture_trials 96 600 pose2,pose2-scene-registered,pose2-unregistered,pose5,pose5-scene-registered,pose5-unregistered,pose5-scene-noise,pose5-scene-noise-unregistered
 //! ```
 //!
 //! Trials: `none`; `radial` (OpenCV k1 = −0.15, k2 = 0.03, p1 = 0.002, p2 = −0.001, both
@@ -14,14 +15,22 @@
 //! model buys); `fisheye` (OPENCV_FISHEYE k1 = 0.05, k2 = −0.01, both captures); `exposure` (the
 //! scene's images × (1.2, 1.1, 0.9) per channel, saturating at 1, the background's as
 //! rendered; Residual-NeRF corrects it to the background's appearance, the prior's default);
-//! `exposure-uncorrected` (the same with `--exposure-correction off`); `pose2` / `pose5` (every training pose off by 2 mm and 0.2°, or 5 mm
-//! and 0.5°, in a random direction; the images rendered at the true poses).
+//! `exposure-uncorrected` (the same with `--exposure-correction off`); `pose2` / `pose5` (every
+//! training pose of both captures off by 2 mm and 0.2°, or 5 mm and 0.5°, in a random
+//! direction, the images rendered at the true poses; compensated as a user would: the
+//! background trained after a registration pass, `rnerf train --pose-registration on`, and
+//! Residual-NeRF registering the scene's images against it, the prior's default);
+//! `pose2-scene-registered` / `pose5-scene-registered` (the scene's registration only);
+//! `pose2-unregistered` / `pose5-unregistered` (neither, `--pose-registration off`);
+//! `pose5-scene-noise` / `pose5-scene-noise-unregistered` (exact background poses, the scene's
+//! off by 5 mm and 0.5°, with and without the scene's registration).
 
 use residual_nerf::app::{demo_config, train_background};
 use residual_nerf::compare::{run_scene, EvalSet, Method};
 use residual_nerf::data::workspace::{self, Capture, Glass};
 use residual_nerf::geometry::Distortion;
 use residual_nerf::simd::Isa;
+use residual_nerf::train::register::registration_pass;
 
 /// The background's and the scene's capture of a trial.
 fn trial(name: &str) -> Result<(Capture, Capture), String> {
@@ -39,10 +48,11 @@ fn trial(name: &str) -> Result<(Capture, Capture), String> {
             (l, l)
         }
         "exposure" | "exposure-uncorrected" => (plain, Capture { gain: [1.2, 1.1, 0.9], ..plain }),
-        "pose2" => (noisy(0.002, 0.2, 1), noisy(0.002, 0.2, 2)),
-        "pose5" => (noisy(0.005, 0.5, 1), noisy(0.005, 0.5, 2)),
+        "pose2" | "pose2-scene-registered" | "pose2-unregistered" => (noisy(0.002, 0.2, 1), noisy(0.002, 0.2, 2)),
+        "pose5" | "pose5-scene-registered" | "pose5-unregistered" => (noisy(0.005, 0.5, 1), noisy(0.005, 0.5, 2)),
+        "pose5-scene-noise" | "pose5-scene-noise-unregistered" => (plain, noisy(0.005, 0.5, 2)),
         other => {
-            return Err(format!("TRIALS: unknown trial '{other}' (none, radial, radial-ignored, fisheye, exposure, exposure-uncorrected, pose2, pose5)"))
+            return Err(format!("TRIALS: unknown trial '{other}' (none, radial, radial-ignored, fisheye, exposure, exposure-uncorrected, pose2, pose2-scene-registered, pose2-unregistered, pose5, pose5-scene-registered, pose5-unregistered, pose5-scene-noise, pose5-scene-noise-unregistered)"))
         }
     })
 }
@@ -74,10 +84,25 @@ fn main() -> Result<(), String> {
                 v.intrinsics.distortion = Distortion::None;
             }
         }
+        // `pose2` / `pose5`: the background's own poses registered first, as `rnerf train
+        // --pose-registration on` does for a NeRF.
+        if name == "pose2" || name == "pose5" {
+            let regs = registration_pass(isa, &bg.views, cfg.field.clone(), &cfg.train, |_| {})
+                .map_err(|e| format!("registration pass: {e}"))?;
+            for (v, r) in bg.views.iter_mut().zip(&regs) {
+                v.pose = r.pose;
+            }
+            eprintln!(
+                "{name}: {} of {} background poses registered",
+                regs.iter().filter(|r| r.applied).count(),
+                regs.len()
+            );
+        }
         let background = train_background(isa, &bg.views, &cfg)?;
         let methods = [Method::Dex, Method::RESIDUAL];
         let mut cfg = cfg.clone();
         cfg.prior.exposure = name != "exposure-uncorrected";
+        cfg.prior.register = !name.ends_with("-unregistered");
         let r = run_scene(isa, name, &background, &bg.views, &scene.views, &test, &methods, &cfg, &mut |_, _| {})?;
         for m in &r.methods {
             let (o, rest) = (&m.threshold.object, &m.threshold.rest);

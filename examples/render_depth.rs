@@ -15,7 +15,8 @@
 
 use residual_nerf::app::demo_config;
 use residual_nerf::data::{workspace, Dataset, LoadOptions};
-use residual_nerf::io::{export, save_nerf};
+use residual_nerf::files::export;
+use residual_nerf::io::save_nerf;
 use residual_nerf::onboard::{DepthKind, DepthMethod, DepthRenderer, DepthRequest};
 use residual_nerf::render::{Intrinsics, Pose};
 use residual_nerf::simd::Isa;

@@ -73,6 +73,7 @@ pub mod encoding;
 pub mod error;
 pub mod eval;
 pub mod field;
+pub mod files;
 pub mod geometry;
 pub mod io;
 pub mod memory;

@@ -161,3 +161,48 @@ fn a_checkpoint_resumes_only_on_its_own_data() {
     assert!(stderr(&o).contains("at step 2 of 6"), "{}", stderr(&o));
     assert!(x.exists());
 }
+
+/// `--pose-registration on` for a NeRF: a registration pass, then the run proper at the
+/// registered poses, which the model's metadata records; interrupted and resumed, the run
+/// trains at the same poses (its data's fingerprint matches) and ends with the same model.
+#[test]
+fn a_registered_run_resumes_at_its_registered_poses() {
+    let dir = scratch("registered");
+    let data = dir.join("data");
+    let noisy = workspace::Capture { pose_noise: Some((0.005, 0.5, 1)), ..Default::default() };
+    workspace::workspace_capture(40, 10, 0.0, workspace::Glass::None, &noisy).write_split(&data, "train").unwrap();
+    let data_s = data.to_str().unwrap();
+    // Enough steps for a first NeRF that registration can use.
+    let register = ["--pose-registration", "on", "--steps", "100", "--rays", "256"];
+    let straight = dir.join("straight.safetensors");
+    let o = rnerf(
+        &[&["train", "--data", data_s, "--out", straight.to_str().unwrap()], &SETTINGS[..], &register[..]].concat(),
+    )
+    .output()
+    .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("registration:"), "{}", stderr(&o));
+    let meta = run_metadata(&straight);
+    let poses = meta.iter().find(|(k, _)| k == "train_registered_poses").map(|(_, v)| v.clone());
+    assert!(poses.is_some_and(|p| p.contains("[[")), "no registered pose recorded: {}", stderr(&o));
+
+    let out = dir.join("m.safetensors");
+    let out_s = out.to_str().unwrap();
+    let ckpt = checkpoint_path(&out);
+    let args = [&["train", "--data", data_s, "--out", out_s, "--checkpoint-every", "5"], &SETTINGS[..], &register[..]]
+        .concat();
+    let mut child = rnerf(&args).spawn().unwrap();
+    let t0 = Instant::now();
+    while !ckpt.exists() {
+        assert!(t0.elapsed() < Duration::from_secs(120), "no checkpoint appeared");
+        assert!(child.try_wait().unwrap().is_none(), "the run ended before its first checkpoint");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    assert!(Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap().success());
+    let o = child.wait_with_output().unwrap();
+    assert_eq!(o.status.code(), Some(130), "{}", stderr(&o));
+    let o = rnerf(&["train", "--resume", ckpt.to_str().unwrap(), "--data", data_s, "--out", out_s]).output().unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(tensors(&straight), tensors(&out), "the resumed model differs from the uninterrupted one");
+    assert_eq!(run_metadata(&straight), run_metadata(&out));
+}

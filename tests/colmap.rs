@@ -44,7 +44,7 @@ fn capture(name: &str, binary: bool) -> Capture2 {
         std::fs::create_dir_all(dir.join("images").join(folder)).unwrap();
         for (i, v) in s.views.iter().enumerate() {
             let name = format!("{folder}/r_{i}.png");
-            let bytes = residual_nerf::io::export::rgb_png_bytes(&v.rgb, 24, 24).unwrap();
+            let bytes = residual_nerf::files::export::rgb_png_bytes(&v.rgb, 24, 24).unwrap();
             std::fs::write(dir.join("images").join(&name), bytes).unwrap();
             truth.push((name, v.clone(), s.depth[i].clone()));
         }

@@ -2,7 +2,7 @@
 //! cameras and pixels; bad input gives one-line errors naming the file, frame and field.
 
 use residual_nerf::data::{AabbSource, Dataset, DepthKind, FrameType, LoadOptions};
-use residual_nerf::io::export::depth_exr_bytes;
+use residual_nerf::files::export::depth_exr_bytes;
 use residual_nerf::render::pixel_ray;
 use serde_json::json;
 use std::path::{Path, PathBuf};

@@ -5,7 +5,7 @@ mod common;
 use common::cases;
 use glam::Vec3;
 use proptest::prelude::*;
-use residual_nerf::field::region::ChangeRegion;
+use residual_nerf::geometry::ChangeRegion;
 use residual_nerf::render::{threshold_depth, Aabb, DensityThreshold, OccupancyConfig, OccupancyGrid, PackedSamples};
 use residual_nerf::rng::Rng;
 

@@ -8,7 +8,7 @@ mod common;
 use glam::Vec3;
 use residual_nerf::data::synth;
 use residual_nerf::field::Nerf;
-use residual_nerf::io::export::depth_ply_bytes;
+use residual_nerf::files::export::depth_ply_bytes;
 use residual_nerf::io::LoadedModel;
 use residual_nerf::onboard::{DepthKind, DepthMethod, DepthRenderer, DepthRequest, Error, ErrorKind, Extras};
 use residual_nerf::render::{pixel_ray, DensityThreshold, Intrinsics, Pose, ViewRenderer};

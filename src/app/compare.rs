@@ -9,7 +9,8 @@ use crate::data::View;
 use crate::data::{Dataset, FrameType, LoadOptions};
 use crate::encoding::HashGridConfig;
 use crate::field::{Nerf, NerfConfig};
-use crate::io::{export, save_nerf, write_atomic};
+use crate::files::{export, write_atomic};
+use crate::io::save_nerf;
 use crate::render::{Aabb, DensityThreshold, OccupancyConfig};
 use crate::simd::Isa;
 use crate::train::trainer::{train_nerf, StepStats, TrainConfig};
@@ -220,7 +221,7 @@ fn write_tables(results: &[SceneResult], cfg: &CompareConfig, out: &Path) -> Res
         .filter_map(|r| {
             r.prior.map(|p| {
                 json!({"scene": r.name, "changed_pixels": p.changed_pixels, "reach_pixels": p.reach_pixels,
-            "matched_views": p.matched_views, "views": p.views, "region_cells": p.region_cells,
+            "matched_views": p.matched_views, "registered_views": p.registered_views, "views": p.views, "region_cells": p.region_cells,
             "region_volume": p.region_volume, "seconds": p.seconds})
             })
         })

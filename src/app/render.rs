@@ -5,7 +5,8 @@
 use super::Progress;
 use crate::data::{Dataset, LoadOptions};
 use crate::field::model::Model;
-use crate::io::{export, load_model, LoadedModel};
+use crate::files::export;
+use crate::io::{load_model, LoadedModel};
 use crate::render::view::Scene;
 use crate::render::DepthMethod;
 use crate::render::{FullOutputs, ViewRenderer};

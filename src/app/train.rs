@@ -8,12 +8,12 @@ use crate::encoding::HashGridConfig;
 use crate::field::mix::{DensityMix, MixKind};
 use crate::field::residual::{ResidualConfig, ResidualModel};
 use crate::field::{Nerf, NerfConfig, NerfField};
-use crate::io::{
-    load_checkpoint, load_model, save_checkpoint, save_model, views_fingerprint, write_atomic, LoadedModel, ModelFile,
-};
+use crate::files::write_atomic;
+use crate::io::{load_checkpoint, load_model, save_checkpoint, save_model, views_fingerprint, LoadedModel, ModelFile};
 use crate::render::Aabb;
 use crate::simd::Isa;
 use crate::train::prior::{residual_start, scene_prior, ColourCorrection, Prior};
+use crate::train::register::{registration_pass, Registration};
 use crate::train::trainer::{TrainConfig, Trainer};
 use signal_hook::consts::{SIGINT, SIGTERM};
 use std::fmt::Write as _;
@@ -178,20 +178,30 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
                 Ok::<_, String>(p)
             });
             let prior = prior.transpose()?;
-            let mut corrections = None;
-            if let Some(p) = prior.as_ref().filter(|p| p.corrected_count() > 0) {
-                data.views = p.corrected_views(&data.views);
-                corrections = Some(corrections_json(&p.corrections));
-                let c = p.corrections.iter().filter(|c| **c != ColourCorrection::IDENTITY);
-                let g = c.flat_map(|c| c.gain).fold((f32::MAX, f32::MIN), |(lo, hi), v| (lo.min(v), hi.max(v)));
-                eprintln!(
-                    "rnerf train: exposure: {} of {} scene images corrected to the background's exposure and white balance \
-                     (gains {:.3}..{:.3})",
-                    p.corrected_count(),
-                    data.views.len(),
-                    g.0,
-                    g.1
-                );
+            if let Some(p) = prior.as_ref().filter(|p| p.registrations.iter().any(Option::is_some)) {
+                let regs: Vec<&Registration> = p.registrations.iter().flatten().collect();
+                describe_registration("scene images' poses corrected against the background", &regs, regs.len());
+            }
+            let (mut corrections, mut poses) = (None, None);
+            if let Some(p) = prior.as_ref().filter(|p| p.corrects_views()) {
+                let given = std::mem::take(&mut data.views);
+                data.views = p.corrected_views(&given);
+                if p.registered_count() > 0 {
+                    poses = Some(poses_json(&given, &data.views));
+                }
+                if p.corrected_count() > 0 {
+                    corrections = Some(corrections_json(&p.corrections));
+                    let c = p.corrections.iter().filter(|c| **c != ColourCorrection::IDENTITY);
+                    let g = c.flat_map(|c| c.gain).fold((f32::MAX, f32::MIN), |(lo, hi), v| (lo.min(v), hi.max(v)));
+                    eprintln!(
+                        "rnerf train: exposure: {} of {} scene images corrected to the background's exposure and white balance \
+                         (gains {:.3}..{:.3})",
+                        p.corrected_count(),
+                        data.views.len(),
+                        g.0,
+                        g.1
+                    );
+                }
             }
             let config = ResidualConfig { residual: field, kind, mixnet };
             let start = residual_start(isa, &bg, config, hints, prior.as_ref(), &cfg, &pcfg);
@@ -206,16 +216,55 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
                 prior: format!("{hints:?}"),
                 corrections,
             };
-            let extra = run_metadata(&cfg, a, Some(&residual));
+            let extra = run_metadata(&cfg, a, Some(&residual), poses.as_deref());
             let trainer = Trainer::starting_at(isa, &model, &data.views, &cfg, start.params, start.occupancy);
             drive(a, &model, trainer, &extra)
         }
         _ => {
+            // With registration: a first NeRF, every image registered against it, and the run
+            // proper at the registered poses (docs/DECISIONS.md, "Registration against the
+            // background"). The first pass is not checkpointed: interrupted, it starts again.
+            let mut poses = None;
+            if a.prior_settings.pose_registration == Some(true) {
+                let mut progress = Progress::new("registration pass", cfg.steps as u64);
+                let regs = registration_pass(isa, &data.views, field.clone(), &cfg, |s| {
+                    progress.update(s.step as u64 + 1, &format!("PSNR {:.2} dB", -10.0 * (s.loss as f64).log10()))
+                })
+                .map_err(|e| format!("registration pass: {e}"))?;
+                let given = data.views.clone();
+                for (v, r) in data.views.iter_mut().zip(&regs) {
+                    v.pose = r.pose;
+                }
+                describe_registration(
+                    "images' poses corrected against a first NeRF of them",
+                    &regs.iter().collect::<Vec<_>>(),
+                    data.views.len(),
+                );
+                poses = Some(poses_json(&given, &data.views));
+            }
             let model = NerfField::new(field);
-            let extra = run_metadata(&cfg, a, None);
+            let extra = run_metadata(&cfg, a, None, poses.as_deref());
             let trainer = Trainer::new(isa, &model, data.aabb, &data.views, &cfg);
             drive(a, &model, trainer, &extra)
         }
+    }
+}
+
+/// Logs what a registration did: how many of `n` views it moved and by how much.
+fn describe_registration(what: &str, regs: &[&Registration], n: usize) {
+    let mut shifts: Vec<f64> = regs.iter().filter(|r| r.applied).map(|r| r.shift_px).collect();
+    shifts.sort_by(f64::total_cmp);
+    let most = regs.iter().filter(|r| r.applied).fold((0f64, 0f64), |m, r| (m.0.max(r.degrees), m.1.max(r.distance)));
+    match shifts.last() {
+        None => eprintln!("rnerf train: registration: none of {n} {what}"),
+        Some(largest) => eprintln!(
+            "rnerf train: registration: {} of {n} {what} (median {:.2} px, largest {largest:.2} px; up to {:.2} degrees \
+             and {:.4} scene units)",
+            shifts.len(),
+            shifts[shifts.len() / 2],
+            most.0,
+            most.1
+        ),
     }
 }
 
@@ -232,6 +281,29 @@ struct ResidualRun {
 const BACKGROUND_FILE: &str = "background_file";
 const TRAIN_PRIOR: &str = "train_prior";
 const COLOUR_CORRECTIONS: &str = "train_colour_corrections";
+const REGISTERED_POSES: &str = "train_registered_poses";
+
+/// Per view, `null` where `trained` keeps `given`'s pose, else the pose it trained at.
+fn poses_json(given: &[crate::data::View], trained: &[crate::data::View]) -> String {
+    let rows: Vec<Option<[[f32; 4]; 3]>> =
+        given.iter().zip(trained).map(|(g, t)| (g.pose != t.pose).then(|| t.pose.to_rows())).collect();
+    serde_json::to_string(&rows).expect("plain json")
+}
+
+/// The scene views at the poses `json` records (the inverse of [`poses_json`]).
+fn apply_poses(views: &mut [crate::data::View], json: &str) -> Result<(), String> {
+    let rows: Vec<Option<[[f32; 4]; 3]>> =
+        serde_json::from_str(json).map_err(|e| format!("metadata '{REGISTERED_POSES}' is not a list of poses: {e}"))?;
+    if rows.len() != views.len() {
+        return Err(format!("metadata '{REGISTERED_POSES}' holds {} poses for {} views", rows.len(), views.len()));
+    }
+    for (v, r) in views.iter_mut().zip(rows) {
+        if let Some(r) = r {
+            v.pose = crate::render::Pose::from_rows(r);
+        }
+    }
+    Ok(())
+}
 
 fn corrections_json(c: &[ColourCorrection]) -> String {
     let rows: Vec<[f32; 3]> = c.iter().map(|c| c.gain).collect();
@@ -257,8 +329,15 @@ fn apply_corrections(views: &mut [crate::data::View], json: &str) -> Result<(), 
 
 /// The metadata of a model file `rnerf train` writes (and of its checkpoints): the run's
 /// settings, data and, for a residual model, its background and hints. One builder for fresh
-/// and resumed runs, so a resumed model carries what an uninterrupted one does.
-fn run_metadata(cfg: &TrainConfig, a: &TrainArgs, residual: Option<&ResidualRun>) -> Vec<(&'static str, String)> {
+/// and resumed runs, so a resumed model carries what an uninterrupted one does. `poses`: the
+/// training images' registered poses as JSON ([`poses_json`]), when any was registered: a
+/// resumed run applies them again before checking its data.
+fn run_metadata(
+    cfg: &TrainConfig,
+    a: &TrainArgs,
+    residual: Option<&ResidualRun>,
+    poses: Option<&str>,
+) -> Vec<(&'static str, String)> {
     let mut m = vec![
         ("train_steps", cfg.steps.to_string()),
         ("train_rays_per_step", cfg.rays_per_step.to_string()),
@@ -277,6 +356,9 @@ fn run_metadata(cfg: &TrainConfig, a: &TrainArgs, residual: Option<&ResidualRun>
         if let Some(c) = &r.corrections {
             m.push((COLOUR_CORRECTIONS, c.clone()));
         }
+    }
+    if let Some(p) = poses {
+        m.push((REGISTERED_POSES, p.to_string()));
     }
     m
 }
@@ -303,6 +385,9 @@ fn resume(a: &TrainArgs, path: &Path) -> Result<(), Failure> {
     };
     data.aabb = aabb;
     describe_data(&data);
+    if let Some(json) = checkpoint.metadata.get(REGISTERED_POSES) {
+        apply_poses(&mut data.views, json).map_err(|e| format!("--resume: {}: {e}", path.display()))?;
+    }
     if let Some(json) = checkpoint.metadata.get(COLOUR_CORRECTIONS) {
         apply_corrections(&mut data.views, json).map_err(|e| format!("--resume: {}: {e}", path.display()))?;
     }
@@ -325,7 +410,8 @@ fn resume(a: &TrainArgs, path: &Path) -> Result<(), Failure> {
         }),
         _ => None,
     };
-    let mut extra = run_metadata(&cfg, a, residual.as_ref());
+    let poses = checkpoint.metadata.get(REGISTERED_POSES).map(String::as_str);
+    let mut extra = run_metadata(&cfg, a, residual.as_ref(), poses);
     extra.push(("train_resumed_from", format!("{} at step {}", path.display(), checkpoint.step)));
     eprintln!("rnerf train: resuming {} at step {} of {}", path.display(), checkpoint.step, cfg.steps);
     let at = |e: String| format!("--resume: {}: {e}", path.display());
@@ -472,5 +558,21 @@ mod tests {
         apply_corrections(&mut resumed, &corrections_json(&c)).unwrap();
         assert_eq!(views_fingerprint(&resumed), views_fingerprint(&fresh));
         assert!(apply_corrections(&mut resumed, "[[1,1,1]]").unwrap_err().contains("1 corrections for 3 views"));
+    }
+
+    /// A resumed run trains at the poses its checkpoint records (registered ones moved, the
+    /// rest as given), so the views' fingerprint matches the fresh run's.
+    #[test]
+    fn recorded_poses_give_the_same_views_back() {
+        let scene = crate::data::workspace::workspace(8, 3, 0.0, true);
+        let mut fresh = scene.views.clone();
+        fresh[1].pose = crate::data::workspace::jitter(fresh[1].pose, 0.004, 0.3, crate::rng::Rng::new(5));
+        let json = poses_json(&scene.views, &fresh);
+        assert!(json.starts_with("[null,[[") && json.ends_with("]],null]"), "{json}");
+        let mut resumed = scene.views.clone();
+        apply_poses(&mut resumed, &json).unwrap();
+        assert_eq!(views_fingerprint(&resumed), views_fingerprint(&fresh));
+        assert_ne!(views_fingerprint(&resumed), views_fingerprint(&scene.views));
+        assert!(apply_poses(&mut resumed, "[null]").unwrap_err().contains("1 poses for 3 views"));
     }
 }

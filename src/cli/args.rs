@@ -132,7 +132,7 @@ pub struct TrainArgs {
     /// (`--background-data`; without it the background model is rendered at those poses).
     pub background_data: Option<PathBuf>,
     /// The background prior's settings (`--beta`, `--region-floor`, `--focus-share`,
-    /// `--region-vote`, `--exposure-correction`).
+    /// `--region-vote`, `--exposure-correction`, `--pose-registration`).
     pub prior_settings: PriorArgs,
     /// Lattice steps per training sample outside a residual model's change region
     /// (`--frozen-stride N`).
@@ -173,7 +173,7 @@ pub struct CompareArgs {
     /// Worker threads (`--threads`).
     pub threads: Option<usize>,
     /// The background prior's settings (`--beta`, `--region-floor`, `--focus-share`,
-    /// `--region-vote`, `--exposure-correction`).
+    /// `--region-vote`, `--exposure-correction`, `--pose-registration`).
     pub prior_settings: PriorArgs,
     /// Lattice steps per training sample outside a residual model's change region
     /// (`--frozen-stride N`).
@@ -196,6 +196,9 @@ pub struct PriorArgs {
     /// Whether the scene images are corrected to the background's exposure and white balance
     /// (`--exposure-correction on|off`; default on).
     pub exposure_correction: Option<bool>,
+    /// Whether the scene images' poses are registered against the background
+    /// (`--pose-registration on|off`; default on).
+    pub pose_registration: Option<bool>,
 }
 
 impl PriorArgs {
@@ -203,6 +206,7 @@ impl PriorArgs {
     pub fn config(&self) -> PriorConfig {
         let mut p = PriorConfig::default();
         p.exposure = self.exposure_correction.unwrap_or(p.exposure);
+        p.register = self.pose_registration.unwrap_or(p.register);
         if let Some((vote, seen)) = self.region_vote {
             (p.vote, p.min_seen) = (vote, seen);
         }

@@ -49,6 +49,7 @@ pub(super) const FLAGS: &[Flag] = &[
     Flag { name: "region-vote", commands: &["train", "compare"], setting: true },
     Flag { name: "frozen-stride", commands: &["train", "compare"], setting: true },
     Flag { name: "exposure-correction", commands: &["train", "compare"], setting: true },
+    Flag { name: "pose-registration", commands: &["train", "compare"], setting: true },
     Flag { name: "model", commands: &["render", "eval", "import", "bench"], setting: false },
     Flag { name: "depth", commands: &["render", "eval"], setting: false },
     Flag { name: "m", commands: &["render", "eval", "compare"], setting: false },
@@ -113,6 +114,7 @@ pub(super) struct Flags {
     pub(super) focus_share: Option<f32>,
     pub(super) region_vote: Option<(f32, f32)>,
     pub(super) exposure_correction: Option<bool>,
+    pub(super) pose_registration: Option<bool>,
     pub(super) frozen_stride: Option<u32>,
     /// Flags given, in order.
     pub(super) given: Vec<String>,
@@ -189,6 +191,7 @@ impl Flags {
             }
             "resume" => self.resume = Some(path(p, name)?),
             "exposure-correction" => self.exposure_correction = Some(choice(p, name, &["on", "off"])? == "on"),
+            "pose-registration" => self.pose_registration = Some(choice(p, name, &["on", "off"])? == "on"),
             "images" => self.images = Some(path(p, name)?),
             "background-match" => {
                 let s = text(p, name)?;
@@ -329,6 +332,7 @@ impl Flags {
             focus_share: self.focus_share,
             region_vote: self.region_vote,
             exposure_correction: self.exposure_correction,
+            pose_registration: self.pose_registration,
         }
     }
 

@@ -8,7 +8,8 @@ commands:
          [--split NAME] [--csv FILE] [--lr LR] [--distortion L] [--near-grad D] [--fixed-background] [--background BG_MODEL [--mix mixnet|sum]
          [--density-mix raw|activated] [--mixnet-encoding own|shared] [--prior all|none|warm-start,region,focus,beta,reach]
          [--background-data BG_DIR] [--beta U,E] [--region-floor S|off] [--focus-share F]
-         [--region-vote V,S] [--frozen-stride N] [--exposure-correction on|off]] [--checkpoint-every N]
+         [--region-vote V,S] [--frozen-stride N] [--exposure-correction on|off]
+         [--pose-registration on|off]] [--checkpoint-every N]
          [--scene-views N]
          train a NeRF on DIR's transforms_<split>.json (default split: train); with --background,
          a Residual-NeRF (residual + Mixnet over the frozen background; --mix sum: Residual-NeRF-S),
@@ -33,7 +34,7 @@ commands:
          [--methods dex,finetune,residual-paper,residual,...] [--scene-views N] [--steps N] [--rays N]
          [--log2t N] [--seed S] [--eval-every N] [--m M | --m-raw S] [--m-sweep M,M,...] [--threads N]
          [--beta U,E] [--region-floor S|off] [--focus-share F] [--region-vote V,S] [--frozen-stride N]
-         [--exposure-correction on|off]
+         [--exposure-correction on|off] [--pose-registration on|off]
          (--m-sweep: also score the final models at these σ thresholds, default 3,10,20,40;
          --beta: weights of the background-aware methods' β penalty and entropy;
          --region-floor: lift the warm-started residual's raw density in the change region to S;
@@ -44,6 +45,8 @@ commands:
          steps of the frozen background, default 1 (every step);
          --exposure-correction: fit each scene image's exposure and white balance to the
          background's before the change maps and training, default on;
+         --pose-registration: correct each scene image's pose so it agrees with the background
+         where nothing changed (a robot arm's poses are millimetres off), default on;
          methods: dex, finetune, residual, residual-no-warm-start, residual-no-region,
          residual-no-focus, residual-no-reach, residual-no-beta, residual-activated, residual-activated-no-warm-start,
          residual-paper, residual-paper-activated, residual-paper-shared,

@@ -198,7 +198,7 @@ pub fn depth_sheet(
             for x in 0..pw {
                 let p = ((y / zoom) * width + x / zoom) as usize;
                 let c = match panel {
-                    Panel::Depth(d) => crate::io::export::depth_colour(d[p], near, far),
+                    Panel::Depth(d) => crate::files::export::depth_colour(d[p], near, far),
                     Panel::Gray(v) => [(v[p].clamp(0.0, 1.0) * 255.0).round() as u8; 3],
                     Panel::Error { depth, truth } => error_colour(depth[p], truth[p]),
                 };

@@ -262,13 +262,16 @@ pub struct PriorSummary {
     /// Training views compared with a background image at the same pose (the rest against
     /// the rendered background).
     pub matched_views: usize,
+    /// Training views whose pose was registered against the background.
+    pub registered_views: usize,
     /// Training views.
     pub views: usize,
     /// Cells in the change region.
     pub region_cells: usize,
     /// The region's volume (scene units cubed).
     pub region_volume: f64,
-    /// Seconds to compute the prior (change maps, the background's depth, the vote).
+    /// Seconds to compute the prior (registration, change maps, the background's depth, the
+    /// vote).
     pub seconds: f64,
 }
 

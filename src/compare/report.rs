@@ -116,11 +116,12 @@ pub fn table(results: &[SceneResult]) -> String {
             let _ = writeln!(
                 s,
                 "\n{}: background prior: {} of the training pixels changed ({}/{} views against a background image at \
-                 the same pose, the rest against the rendered background); change region {} cells ({:.4} m³), crossed by the rays of {} of the pixels; {:.1} s",
+                 the same pose, the rest against the rendered background; {} poses registered); change region {} cells ({:.4} m³), crossed by the rays of {} of the pixels; {:.1} s",
                 r.name,
                 pct(p.changed_pixels),
                 p.matched_views,
                 p.views,
+                p.registered_views,
                 p.region_cells,
                 p.region_volume,
                 pct(p.reach_pixels),
@@ -273,7 +274,7 @@ pub fn curves_png(r: &SceneResult) -> Result<Vec<u8>, String> {
         plot(&format!("{}: near-crop RMSE (m)", r.name), "steps", &series(step, rmse), w, h),
         plot(&format!("{}: near-crop RMSE (m)", r.name), "seconds", &series(secs, rmse), w, h),
     ];
-    crate::io::export::png_bytes(figures::grid(&panels, 2))
+    crate::files::export::png_bytes(figures::grid(&panels, 2))
 }
 
 /// Test view `i` of a scene side by side: ground truth, then each method's depth (NeRF's
@@ -283,7 +284,7 @@ pub fn depth_sheet_png(r: &SceneResult, test: &EvalSet, i: usize) -> Result<Vec<
     use figures::Panel;
     let k = &test.views[i].intrinsics;
     let gt = &test.depth[i];
-    let (near, far) = crate::io::export::depth_range(gt);
+    let (near, far) = crate::files::export::depth_range(gt);
     let mut panels: Vec<(&str, Panel<'_>)> = vec![("truth", Panel::Depth(gt))];
     for m in &r.methods {
         let v = &m.renders[i];
@@ -303,5 +304,5 @@ pub fn depth_sheet_png(r: &SceneResult, test: &EvalSet, i: usize) -> Result<Vec<
         panels.push(("error 0-10cm", Panel::Error { depth: &m.renders[i].threshold_z, truth: gt }));
     }
     let mask = test.masks[i].as_deref();
-    crate::io::export::png_bytes(figures::depth_sheet(&panels, k.width, k.height, test.crops[i], mask, near, far))
+    crate::files::export::png_bytes(figures::depth_sheet(&panels, k.width, k.height, test.crops[i], mask, near, far))
 }

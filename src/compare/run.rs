@@ -158,6 +158,7 @@ pub fn run_scene(
             changed_pixels: p.changed_share(),
             reach_pixels: p.reach_share(),
             matched_views: p.matched_views,
+            registered_views: p.registered_count(),
             views: train.len(),
             region_cells: p.region.count(),
             region_volume: p.region.volume(),
@@ -189,8 +190,9 @@ pub fn run_scene(
                         eprintln!("{name}: {l}");
                     }
                     let init = Some((start.params, start.occupancy));
-                    // In the background's appearance when the prior corrected the exposure.
-                    let corrected = p.filter(|p| p.corrected_count() > 0).map(|p| p.corrected_views(train));
+                    // In the background's frame and appearance when the prior registered a pose
+                    // or corrected the exposure.
+                    let corrected = p.filter(|p| p.corrects_views()).map(|p| p.corrected_views(train));
                     let views = corrected.as_deref().unwrap_or(train);
                     run_method(isa, name, method, &start.field, init, views, test, &mcfg, log)
                 }

@@ -149,7 +149,7 @@ pub fn read_model(dir: &Path) -> Result<ColmapModel, String> {
             Err(format!("{}: no {stem}.bin or {stem}.txt", dir.display()))
         }
     };
-    let read = |p: &Path| crate::io::read_limited(p, MAX_FILE_BYTES).map_err(|e| format!("{}: {e}", p.display()));
+    let read = |p: &Path| crate::files::read_limited(p, MAX_FILE_BYTES).map_err(|e| format!("{}: {e}", p.display()));
     let mut model = ColmapModel::default();
     let (path, bin) = pick("cameras")?;
     let bytes = read(&path)?;
@@ -432,7 +432,7 @@ pub fn write_model(model: &ColmapModel, dir: &Path, binary: bool) -> Result<(), 
     }
     let ext = if binary { "bin" } else { "txt" };
     for (stem, bytes) in [("cameras", cams), ("images", ims), ("points3D", pts)] {
-        crate::io::write_atomic(&dir.join(format!("{stem}.{ext}")), &bytes)?;
+        crate::files::write_atomic(&dir.join(format!("{stem}.{ext}")), &bytes)?;
     }
     Ok(())
 }
@@ -547,7 +547,7 @@ pub fn import(o: &ImportOptions) -> Result<ImportReport, String> {
     for (dir, n, text) in jsons {
         std::fs::create_dir_all(&dir).map_err(|e| format!("{}: cannot create: {e}", dir.display()))?;
         let path = dir.join("transforms_train.json");
-        crate::io::write_atomic(&path, text.as_bytes())?;
+        crate::files::write_atomic(&path, text.as_bytes())?;
         written.push((path, n));
     }
     Ok(ImportReport { written, metres_per_unit, aabb })

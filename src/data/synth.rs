@@ -34,7 +34,7 @@ impl SynthScene {
     /// metres), and `r_{i}_mask.png` with the frame's `crop` when the scene has masks. Every file
     /// is written atomically.
     pub fn write_split(&self, dir: &std::path::Path, split: &str) -> Result<(), String> {
-        use crate::io::export::{depth_exr_bytes, mask_png_bytes, rgb_png_bytes, write};
+        use crate::files::export::{depth_exr_bytes, mask_png_bytes, rgb_png_bytes, write};
         let sub = dir.join(split);
         std::fs::create_dir_all(&sub).map_err(|e| format!("{}: cannot create: {e}", sub.display()))?;
         let k = self.views.first().map(|v| v.intrinsics).ok_or("synth: no views")?;
@@ -71,7 +71,7 @@ impl SynthScene {
             }
         }
         let text = serde_json::to_string_pretty(&json).expect("plain json");
-        crate::io::write_atomic(&dir.join(format!("transforms_{split}.json")), text.as_bytes())
+        crate::files::write_atomic(&dir.join(format!("transforms_{split}.json")), text.as_bytes())
     }
 }
 

@@ -345,22 +345,7 @@ pub fn workspace_capture(size: u32, n_views: usize, phase: f32, glass: Glass, ca
             let elev = s.asin();
             let eye = TARGET + CAMERA_DISTANCE * Vec3::new(elev.cos() * a.cos(), elev.cos() * a.sin(), elev.sin());
             let pose = Pose::look_at(eye, TARGET);
-            let n = (size * size) as usize;
-            let (mut rgb, mut z, mut mask) = (Vec::with_capacity(n), Vec::with_capacity(n), Vec::with_capacity(n));
-            for j in 0..size {
-                for i in 0..size {
-                    let ray = pixel_ray(&k, &pose, i, j);
-                    let first = intersect(&ray, glass);
-                    let c = shade(&ray, glass, 0);
-                    rgb.push(match capture.gain == [1.0; 3] {
-                        true => c,
-                        // A camera's exposure: the sensor saturates.
-                        false => std::array::from_fn(|ch| (c[ch] * capture.gain[ch]).clamp(0.0, 1.0)),
-                    });
-                    z.push(first.map_or(f32::NAN, |h| ray.range_to_z(h.t)));
-                    mask.push(first.is_some_and(|h| matches!(h.surface, Surface::Glass)));
-                }
-            }
+            let (rgb, z, mask) = render_view(&k, &pose, glass, capture.gain);
             let pose = match capture.pose_noise {
                 Some((metres, degrees, seed)) => jitter(pose, metres, degrees, crate::rng::Rng::stream(seed, v as u64)),
                 None => pose,
@@ -377,6 +362,28 @@ pub fn workspace_capture(size: u32, n_views: usize, phase: f32, glass: Glass, ca
         scene.masks.push(mask);
     }
     scene
+}
+
+/// One view of the workspace from any camera: colours (through a per-channel `gain`, clamped
+/// as a sensor saturates), z-depth of the first surface (NaN where none) and the glass mask.
+pub fn render_view(k: &Intrinsics, pose: &Pose, glass: Glass, gain: [f32; 3]) -> (Vec<[f32; 3]>, Vec<f32>, Vec<bool>) {
+    let n = (k.width * k.height) as usize;
+    let (mut rgb, mut z, mut mask) = (Vec::with_capacity(n), Vec::with_capacity(n), Vec::with_capacity(n));
+    for j in 0..k.height {
+        for i in 0..k.width {
+            let ray = pixel_ray(k, pose, i, j);
+            let first = intersect(&ray, glass);
+            let c = shade(&ray, glass, 0);
+            rgb.push(match gain == [1.0; 3] {
+                true => c,
+                // A camera's exposure: the sensor saturates.
+                false => std::array::from_fn(|ch| (c[ch] * gain[ch]).clamp(0.0, 1.0)),
+            });
+            z.push(first.map_or(f32::NAN, |h| ray.range_to_z(h.t)));
+            mask.push(first.is_some_and(|h| matches!(h.surface, Surface::Glass)));
+        }
+    }
+    (rgb, z, mask)
 }
 
 /// `pose` moved by `metres` in a random direction and turned by `degrees` about a random axis

@@ -11,7 +11,6 @@
 pub mod mix;
 pub mod mixnet;
 pub mod model;
-pub mod region;
 pub mod residual;
 
 use crate::encoding::{sh4, HashGrid, HashGridConfig, HashGridParams, SH4_COEFFS};
@@ -67,7 +66,7 @@ pub struct Nerf {
     /// Parameters.
     pub params: NerfParams,
     /// Occupancy grid over the scene box.
-    pub occupancy: crate::render::OccupancyGrid,
+    pub occupancy: crate::geometry::OccupancyGrid,
 }
 
 /// The field's geometry and kernels (parameters live in [`NerfParams`]).
@@ -216,6 +215,11 @@ impl NerfField {
     /// The hash grid.
     pub fn grid(&self) -> &HashGrid {
         &self.grid
+    }
+
+    /// The density and the colour networks (DESIGN §2.1: 32 → 64 → 16 and 31 → 64 → 64 → 3).
+    pub fn networks(&self) -> (&Mlp<64>, &Mlp<64>) {
+        (&self.density, &self.colour)
     }
 
     /// Layers of the density network (flat-buffer views).

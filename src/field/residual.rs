@@ -5,8 +5,8 @@
 
 use super::mix::{mix_backward, mix_backward_rows, mix_forward, MixInput, MixKind, MixOutput};
 use super::mixnet::{Mixnet, MixnetChunk, MixnetContext, MixnetEncoding, MixnetGrads, MixnetParams};
-use super::region::ChangeRegion;
 use super::{FieldChunk, FieldContext, Nerf, NerfConfig, NerfField, NerfGrads, NerfParams, NetGrads};
+use crate::geometry::ChangeRegion;
 use crate::rng::Rng;
 use crate::simd::Isa;
 use crate::GradientMode;
@@ -64,7 +64,7 @@ pub struct ResidualModel {
     /// Residual and Mixnet parameters.
     pub params: ResidualParams,
     /// Occupancy of the mixed field.
-    pub occupancy: crate::render::OccupancyGrid,
+    pub occupancy: crate::geometry::OccupancyGrid,
 }
 
 /// What a residual forward saves.

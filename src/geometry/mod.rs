@@ -1,13 +1,20 @@
 //! Geometry every layer shares: the scene box ([`Aabb`]: the field's encodings, the occupancy
-//! grid, the change region, the datasets) and cameras ([`camera`]: intrinsics, poses, pixel
-//! rays, depth conventions; [`distortion`]: lens models).
+//! grid, the change region, the datasets), cameras ([`camera`]: intrinsics, poses, pixel
+//! rays, depth conventions; [`distortion`]: lens models) and two cell sets over the box: the
+//! occupancy grid ([`occupancy`]: where the field has something, and marching rays through
+//! it) and a residual model's change region ([`region`]). A trained model carries both, the
+//! trainer refreshes the grid and the renderer marches it, so they live here, below all three.
 
 pub mod camera;
 pub mod distortion;
+pub mod occupancy;
+pub mod region;
 
 pub use camera::{pixel_ray, DepthKind, Intrinsics, Pose, Ray};
 pub use distortion::Distortion;
 use glam::Vec3;
+pub use occupancy::{OccupancyConfig, OccupancyGrid, PackedSamples, RaySpan};
+pub use region::ChangeRegion;
 
 /// The scene's axis-aligned bounding box.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -11,19 +11,19 @@
 //! `P config`: `{"grid": {...}, "aabb": [[..],[..]], "occupancy": {...}}`; any extra keys the
 //! writer adds (training settings) are informational.
 //!
-//! Writes are atomic ([`super::write_atomic`]) and refuse non-finite weights; loading refuses
+//! Writes are atomic ([`crate::files::write_atomic`]) and refuse non-finite weights; loading refuses
 //! a truncated file, another format or version, shapes that do not match the config, and
 //! non-finite weights — each with one line naming the file and the tensor or key.
 
-use super::atomic::write_atomic;
 use crate::encoding::{HashGridConfig, HashGridParams};
 use crate::error::{Error, ErrorKind};
 use crate::field::mix::{DensityMix, MixKind};
 use crate::field::mixnet::{MixnetEncoding, MixnetParams};
 use crate::field::model::Model;
-use crate::field::region::ChangeRegion;
 use crate::field::residual::{ResidualConfig, ResidualField, ResidualModel, ResidualParams};
 use crate::field::{NerfConfig, NerfField, NerfParams};
+use crate::files::write_atomic;
+use crate::geometry::ChangeRegion;
 use crate::mlp::LayerShape;
 use crate::render::{Aabb, OccupancyConfig, OccupancyGrid};
 use crate::train::trainer::Nerf;
@@ -294,7 +294,7 @@ fn parse_config(v: &Value) -> Result<(NerfConfig, OccupancyConfig), String> {
 
 /// Reads a whole model file (size-limited), errors naming the file.
 pub fn read_model_bytes(path: &Path) -> Result<Vec<u8>, Error> {
-    super::read_limited(path, MAX_MODEL_BYTES)
+    crate::files::read_limited(path, MAX_MODEL_BYTES)
         .map_err(|e| Error::new(ErrorKind::Io, format!("{}: model file: {e}", path.display())))
 }
 

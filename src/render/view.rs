@@ -17,9 +17,7 @@
 
 use super::composite::RayAccumulator;
 use super::depth::DensityThreshold;
-use super::occupancy::RaySpan;
-use super::OccupancyGrid;
-use super::{pixel_ray, Intrinsics, Pose, Ray};
+use super::{pixel_ray, Intrinsics, OccupancyGrid, Pose, Ray, RaySpan};
 use crate::field::model::Model;
 use crate::field::residual::{ResidualField, ResidualModel};
 use crate::field::{Nerf, NerfField};

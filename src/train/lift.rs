@@ -11,8 +11,8 @@
 //! starts at the background plus at most `β·e^{s₀}` of fog inside the region.
 
 use crate::field::model::Model;
-use crate::field::region::ChangeRegion;
 use crate::field::{Nerf, NerfField, NerfParams};
+use crate::geometry::ChangeRegion;
 use crate::mlp::Activation;
 use crate::rng::Rng;
 use crate::simd::Isa;

@@ -6,6 +6,7 @@ pub mod beta;
 pub mod field_fit;
 pub mod lift;
 pub mod prior;
+pub mod register;
 mod step;
 pub mod trainer;
 

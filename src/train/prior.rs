@@ -5,16 +5,21 @@
 //! 1. **Background colours** per scene training view: the background capture's image at the
 //!    same pose when there is one (same intrinsics, pose within [`SAME_POSE`]), else the
 //!    background model rendered at that pose.
-//! 2. **Exposure and white balance** ([`fit_correction`]): per scene view, a per-channel gain
+//! 2. **Registration** ([`crate::train::register`]): per scene view whose pose is not a
+//!    background view's, the pose corrected so the image agrees with the background rendered
+//!    there where the workspace did not change (a robot arm's poses are millimetres off); the
+//!    background is rendered again at the registered pose for what follows, and the residual
+//!    trains from it ([`PriorConfig::register`] turns it off).
+//! 3. **Exposure and white balance** ([`fit_correction`]): per scene view, a per-channel gain
 //!    fitted robustly (trimmed least squares) from the scene image to the background's colours, so a global brightness or white-balance change between the two
 //!    captures is not a change; the change maps are computed after it and the residual trains
 //!    on the corrected images ([`ScenePrior::corrected_views`]), in the frozen background's
 //!    appearance. A fit within [`IDENTITY_GAIN`] of the identity is not applied ([`PriorConfig::exposure`] turns the correction off).
-//! 3. **Change maps** ([`change_map`]): a pixel changed when the 3×3 box-filtered colours differ
+//! 4. **Change maps** ([`change_map`]): a pixel changed when the 3×3 box-filtered colours differ
 //!    by more than [`PriorConfig::tolerance`] in some channel; single specks are removed (a
 //!    changed pixel needs [`MIN_NEIGHBOURS`] changed 8-neighbours) and the map is dilated by
 //!    [`PriorConfig::dilate_px`] pixels, so the edges of a faint glass are kept.
-//! 4. **Change region** ([`vote_region`]): every occupancy cell is projected into every view; a
+//! 5. **Change region** ([`vote_region`]): every occupancy cell is projected into every view; a
 //!    view *sees* the cell when it lies in front of the background's threshold-depth surface at
 //!    that pixel (within a cell diagonal; at a hole in the background's depth per
 //!    [`PriorConfig::holes_see`]). A cell is changed when at least [`PriorConfig::min_seen`] of
@@ -22,9 +27,9 @@
 //!    changed pixel there: a visual hull of the change maps, carved by the background's own
 //!    geometry, so a view whose line of sight is blocked by an opaque object does not vote. The
 //!    region is then dilated by [`PriorConfig::region_dilate`] cells.
-//! 5. **Focus pixels**: the changed pixels of every view, from which the trainer draws
+//! 6. **Focus pixels**: the changed pixels of every view, from which the trainer draws
 //!    [`PriorConfig::change_share`] of each step's rays ([`crate::train::trainer::Focus`]).
-//! 6. **Reach pixels** ([`reach_pixels`]): the pixels whose ray crosses the region in front of
+//! 7. **Reach pixels** ([`reach_pixels`]): the pixels whose ray crosses the region in front of
 //!    the background's surface. Outside the region the field is the frozen background, so a ray
 //!    that misses it carries no gradient; with the region the trainer draws the rest of each
 //!    step's rays from these pixels (changed or not: the unchanged ones carve the region's
@@ -32,16 +37,17 @@
 
 use crate::data::View;
 use crate::field::model::Model;
-use crate::field::region::ChangeRegion;
 use crate::field::residual::{ResidualConfig, ResidualField, ResidualParams};
 use crate::field::Nerf;
+use crate::geometry::ChangeRegion;
 use crate::render::view::Scene;
 use crate::render::OccupancyGrid;
-use crate::render::{DensityThreshold, ViewRenderer};
+use crate::render::{DensityThreshold, RenderedView, ViewRenderer};
 use crate::rng::Rng;
 use crate::simd::Isa;
 use crate::train::beta::BetaRegulariser;
 use crate::train::lift::{lift_region, LiftConfig, LiftReport};
+use crate::train::register::{register, Registration};
 use crate::train::trainer::{Focus, TrainConfig};
 use glam::Vec3;
 use rayon::prelude::*;
@@ -84,6 +90,9 @@ pub struct PriorConfig {
     /// Correct each scene image's exposure and white balance to the background's before the
     /// change maps and training ([`fit_correction`]). Defaults to true.
     pub exposure: bool,
+    /// Register each scene image's pose against the background before everything else
+    /// ([`crate::train::register`]). Defaults to true.
+    pub register: bool,
 }
 
 /// Default density floor (measured on the dev scenes: docs/DECISIONS.md).
@@ -105,6 +114,7 @@ impl Default for PriorConfig {
             beta: DEFAULT_BETA,
             lift: DEFAULT_LIFT,
             exposure: true,
+            register: true,
         }
     }
 }
@@ -124,6 +134,10 @@ pub struct ScenePrior {
     pub reach: Vec<(u32, u32)>,
     /// The colour correction applied to each training view (identity when off or negligible).
     pub corrections: Vec<ColourCorrection>,
+    /// Each training view's registration against the background (`None`: not registered — off,
+    /// or the view is a background view's pose); its pose is the view's pose for the prior and
+    /// for training, the given one when not applied.
+    pub registrations: Vec<Option<Registration>>,
 }
 
 /// A fitted gain within this of 1 in every channel is not applied: below that the fit is
@@ -206,11 +220,28 @@ pub fn fit_correction(scene: &[[f32; 3]], background: &[[f32; 3]]) -> ColourCorr
 }
 
 impl ScenePrior {
-    /// `views` (the ones the prior was computed from) in the background's appearance: each
-    /// image through its [`ColourCorrection`] (views whose correction is the identity are
-    /// returned as they are).
+    /// `views` (the ones the prior was computed from) in the background's frame and
+    /// appearance: each at its registered pose and its image through its [`ColourCorrection`]
+    /// (views with neither are returned as they are).
     pub fn corrected_views(&self, views: &[View]) -> Vec<View> {
+        let views = self.registered_views(views);
         views.iter().zip(&self.corrections).map(|(v, c)| c.view(v)).collect()
+    }
+
+    /// `views` at their registered poses.
+    pub fn registered_views(&self, views: &[View]) -> Vec<View> {
+        at_poses(views, &self.registrations)
+    }
+
+    /// Whether [`Self::corrected_views`] differ from the views given (a pose registered or an
+    /// image corrected).
+    pub fn corrects_views(&self) -> bool {
+        self.registered_count() > 0 || self.corrected_count() > 0
+    }
+
+    /// How many views' poses were corrected.
+    pub fn registered_count(&self) -> usize {
+        self.registrations.iter().flatten().filter(|r| r.applied).count()
     }
 
     /// How many views' images are corrected.
@@ -229,6 +260,39 @@ impl ScenePrior {
     }
 }
 
+/// `views` with each applied registration's pose.
+fn at_poses(views: &[View], registrations: &[Option<Registration>]) -> Vec<View> {
+    let pose = |v: &View, r: &Option<Registration>| r.filter(|r| r.applied).map_or(v.pose, |r| r.pose);
+    views.iter().zip(registrations).map(|(v, r)| View { pose: pose(v, r), ..v.clone() }).collect()
+}
+
+/// Registers every view whose pose is not a background view's against `background` rendered
+/// at its pose (one render each; [`register`]). Returns the registrations, and the renders of
+/// the views whose pose stays (the background there for [`background_at`]).
+#[allow(clippy::type_complexity)]
+fn register_views(
+    isa: Isa,
+    background: &Nerf,
+    bg_views: &[View],
+    views: &[View],
+    sky: [f32; 3],
+    m: DensityThreshold,
+) -> (Vec<Option<Registration>>, Vec<Option<RenderedView>>) {
+    let mut renderer = ViewRenderer::new();
+    let scene = Scene::from(background);
+    views
+        .iter()
+        .map(|v| {
+            if bg_views.iter().any(|b| same_pose(b, v)) {
+                return (None, None);
+            }
+            let r = renderer.render(isa, &scene, &v.intrinsics, &v.pose, sky, m);
+            let reg = register(v, &r.rgb, &r.threshold_z);
+            (Some(reg), (!reg.applied).then_some(r))
+        })
+        .unzip()
+}
+
 fn same_pose(a: &View, b: &View) -> bool {
     let (ka, kb) = (&a.intrinsics, &b.intrinsics);
     let same_k = ka.width == kb.width
@@ -242,13 +306,15 @@ fn same_pose(a: &View, b: &View) -> bool {
 
 /// The background at each of `views`' poses: its colours — `bg_views`' image at the same pose,
 /// else `background` rendered there (over `sky`) — and its threshold z-depth at `m` (rendered;
-/// NaN at holes), from one render per view. Returns them and how many views were matched.
+/// NaN at holes), from one render per view (`rendered[i]` when given: view `i` rendered at its
+/// pose already). Returns them and how many views were matched.
 #[allow(clippy::type_complexity)]
 fn background_at(
     isa: Isa,
     background: &Nerf,
     bg_views: &[View],
     views: &[View],
+    rendered: Vec<Option<RenderedView>>,
     sky: [f32; 3],
     m: DensityThreshold,
 ) -> (Vec<(Vec<[f32; 3]>, Vec<f32>)>, usize) {
@@ -257,8 +323,12 @@ fn background_at(
     let mut matched = 0;
     let out = views
         .iter()
-        .map(|v| {
+        .zip(rendered)
+        .map(|(v, done)| {
             let k = &v.intrinsics;
+            if let Some(r) = done {
+                return (r.rgb, r.threshold_z);
+            }
             match bg_views.iter().find(|b| same_pose(b, v)) {
                 Some(b) => {
                     matched += 1;
@@ -277,7 +347,7 @@ fn background_at(
 }
 
 /// 3×3 box filter (edges clamped).
-fn box3(img: &[[f32; 3]], w: usize, h: usize) -> Vec<[f32; 3]> {
+pub(super) fn box3(img: &[[f32; 3]], w: usize, h: usize) -> Vec<[f32; 3]> {
     let mut out = vec![[0.0; 3]; w * h];
     for y in 0..h {
         for x in 0..w {
@@ -461,7 +531,19 @@ pub fn scene_prior(
     m: DensityThreshold,
     cfg: &PriorConfig,
 ) -> ScenePrior {
-    let (bg, matched_views) = background_at(isa, background, bg_views, views, sky, m);
+    let (registrations, rendered) = match cfg.register {
+        true => register_views(isa, background, bg_views, views, sky, m),
+        false => (vec![None; views.len()], (0..views.len()).map(|_| None).collect()),
+    };
+    let registered;
+    let views = match registrations.iter().flatten().any(|r| r.applied) {
+        true => {
+            registered = at_poses(views, &registrations);
+            &registered[..]
+        }
+        false => views,
+    };
+    let (bg, matched_views) = background_at(isa, background, bg_views, views, rendered, sky, m);
     let corrections: Vec<ColourCorrection> = views
         .par_iter()
         .zip(&bg)
@@ -492,7 +574,7 @@ pub fn scene_prior(
         .enumerate()
         .flat_map(|(i, map)| map.iter().enumerate().filter(|(_, &c)| c).map(move |(p, _)| (i as u32, p as u32)))
         .collect();
-    ScenePrior { maps, matched_views, region, focus, reach, corrections }
+    ScenePrior { maps, matched_views, region, focus, reach, corrections, registrations }
 }
 
 /// Which of the background's hints a residual model uses.

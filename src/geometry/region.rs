@@ -6,7 +6,7 @@
 //! inside it the trainer keeps the occupancy grid's cells marchable, so a glass standing where
 //! the background had empty air is sampled from the first step on.
 
-use crate::geometry::Aabb;
+use super::Aabb;
 use glam::Vec3;
 
 /// A set of cells of a `resolution³` grid over `aabb` (cell `x + r·(y + r·z)`, x fastest, as

@@ -17,7 +17,7 @@
 //! Empty space is crossed cell by cell (3-D DDA), and a block of [`BLOCK`]³ cells that is
 //! empty as a whole in one jump — the same cells and boundary times, fewer steps.
 
-use crate::geometry::Aabb;
+use super::Aabb;
 use crate::rng::Rng;
 use glam::Vec3;
 
@@ -220,7 +220,7 @@ impl OccupancyGrid {
     /// residual model's change region: where a new object may stand in what was empty air, so
     /// the residual must be sampled before it has any density). Pins carry over clones and
     /// updates, not model files: a residual model re-pins its region on loading.
-    pub fn pin(&mut self, region: &crate::field::region::ChangeRegion) {
+    pub fn pin(&mut self, region: &super::ChangeRegion) {
         assert!(
             region.resolution() == self.config.resolution && *region.aabb() == self.aabb,
             "occupancy: the pinned region's grid differs from the occupancy grid"

@@ -10,7 +10,7 @@
 //! - the camera as JSON (intrinsics, pose, depth convention).
 
 use super::atomic::write_atomic;
-use crate::render::{pixel_ray, Intrinsics, Pose};
+use crate::geometry::{pixel_ray, Intrinsics, Pose};
 use std::io::Cursor;
 use std::path::Path;
 
