@@ -20,6 +20,7 @@
 //! direction, the images rendered at the true poses; compensated as a user would: the
 //! background trained after a registration pass, `rnerf train --pose-registration on`, and
 //! Residual-NeRF registering the scene's images against it, the prior's default);
+//! `pose5-two-passes` (the background's registration pass run twice);
 //! `pose2-scene-registered` / `pose5-scene-registered` (the scene's registration only);
 //! `pose2-unregistered` / `pose5-unregistered` (neither, `--pose-registration off`);
 //! `pose5-scene-noise` / `pose5-scene-noise-unregistered` (exact background poses, the scene's
@@ -49,10 +50,12 @@ fn trial(name: &str) -> Result<(Capture, Capture), String> {
         }
         "exposure" | "exposure-uncorrected" => (plain, Capture { gain: [1.2, 1.1, 0.9], ..plain }),
         "pose2" | "pose2-scene-registered" | "pose2-unregistered" => (noisy(0.002, 0.2, 1), noisy(0.002, 0.2, 2)),
-        "pose5" | "pose5-scene-registered" | "pose5-unregistered" => (noisy(0.005, 0.5, 1), noisy(0.005, 0.5, 2)),
+        "pose5" | "pose5-two-passes" | "pose5-scene-registered" | "pose5-unregistered" => {
+            (noisy(0.005, 0.5, 1), noisy(0.005, 0.5, 2))
+        }
         "pose5-scene-noise" | "pose5-scene-noise-unregistered" => (plain, noisy(0.005, 0.5, 2)),
         other => {
-            return Err(format!("TRIALS: unknown trial '{other}' (none, radial, radial-ignored, fisheye, exposure, exposure-uncorrected, pose2, pose2-scene-registered, pose2-unregistered, pose5, pose5-scene-registered, pose5-unregistered, pose5-scene-noise, pose5-scene-noise-unregistered)"))
+            return Err(format!("TRIALS: unknown trial '{other}' (none, radial, radial-ignored, fisheye, exposure, exposure-uncorrected, pose2, pose2-scene-registered, pose2-unregistered, pose5, pose5-two-passes, pose5-scene-registered, pose5-unregistered, pose5-scene-noise, pose5-scene-noise-unregistered)"))
         }
     })
 }
@@ -85,18 +88,20 @@ fn main() -> Result<(), String> {
             }
         }
         // `pose2` / `pose5`: the background's own poses registered first, as `rnerf train
-        // --pose-registration on` does for a NeRF.
-        if name == "pose2" || name == "pose5" {
+        // --pose-registration on` does for a NeRF (`pose5-two-passes`: twice).
+        let passes = match name {
+            "pose2" | "pose5" => 1,
+            "pose5-two-passes" => 2,
+            _ => 0,
+        };
+        for _ in 0..passes {
             let regs = registration_pass(isa, &bg.views, cfg.field.clone(), &cfg.train, |_| {})
                 .map_err(|e| format!("registration pass: {e}"))?;
             for (v, r) in bg.views.iter_mut().zip(&regs) {
                 v.pose = r.pose;
             }
-            eprintln!(
-                "{name}: {} of {} background poses registered",
-                regs.iter().filter(|r| r.applied).count(),
-                regs.len()
-            );
+            let applied = regs.iter().filter(|r| r.applied).count();
+            eprintln!("{name}: {applied} of {} background poses registered", regs.len());
         }
         let background = train_background(isa, &bg.views, &cfg)?;
         let methods = [Method::Dex, Method::RESIDUAL];

@@ -383,6 +383,18 @@ fn catalogue() -> Vec<Case> {
             &["--resume", "--steps"],
         ),
         case(
+            "registration passes without registration",
+            |_| {},
+            "train --data {d} --out {d}/m.safetensors --registration-passes 2",
+            &["--registration-passes", "--pose-registration on"],
+        ),
+        case(
+            "too many registration passes",
+            |_| {},
+            "train --data {d} --out {d}/m.safetensors --pose-registration on --registration-passes 9",
+            &["--registration-passes", "1..=4"],
+        ),
+        case(
             "resume with a new prior setting",
             |_| {},
             "train --resume {d}/c --data {d} --out {d}/m.safetensors --focus-share 0.3",

@@ -225,21 +225,22 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
             // proper at the registered poses (docs/DECISIONS.md, "Registration against the
             // background"). The first pass is not checkpointed: interrupted, it starts again.
             let mut poses = None;
-            if a.prior_settings.pose_registration == Some(true) {
-                let mut progress = Progress::new("registration pass", cfg.steps as u64);
+            let passes = match a.prior_settings.pose_registration {
+                Some(true) => a.registration_passes.unwrap_or(1),
+                _ => 0,
+            };
+            let given = if passes > 0 { data.views.clone() } else { Vec::new() };
+            for pass in 1..=passes {
+                let mut progress = Progress::new(&format!("registration pass {pass}/{passes}"), cfg.steps as u64);
                 let regs = registration_pass(isa, &data.views, field.clone(), &cfg, |s| {
                     progress.update(s.step as u64 + 1, &format!("PSNR {:.2} dB", -10.0 * (s.loss as f64).log10()))
                 })
-                .map_err(|e| format!("registration pass: {e}"))?;
-                let given = data.views.clone();
+                .map_err(|e| format!("registration pass {pass}: {e}"))?;
                 for (v, r) in data.views.iter_mut().zip(&regs) {
                     v.pose = r.pose;
                 }
-                describe_registration(
-                    "images' poses corrected against a first NeRF of them",
-                    &regs.iter().collect::<Vec<_>>(),
-                    data.views.len(),
-                );
+                let what = format!("images' poses corrected against a NeRF of them (pass {pass}/{passes})");
+                describe_registration(&what, &regs.iter().collect::<Vec<_>>(), data.views.len());
                 poses = Some(poses_json(&given, &data.views));
             }
             let model = NerfField::new(field);

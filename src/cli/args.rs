@@ -137,6 +137,9 @@ pub struct TrainArgs {
     /// Lattice steps per training sample outside a residual model's change region
     /// (`--frozen-stride N`).
     pub frozen_stride: Option<u32>,
+    /// Registration passes of a NeRF trained with `--pose-registration on`
+    /// (`--registration-passes N`; default 1).
+    pub registration_passes: Option<u32>,
 }
 
 /// Arguments of `rnerf compare`.

@@ -50,6 +50,7 @@ pub(super) const FLAGS: &[Flag] = &[
     Flag { name: "frozen-stride", commands: &["train", "compare"], setting: true },
     Flag { name: "exposure-correction", commands: &["train", "compare"], setting: true },
     Flag { name: "pose-registration", commands: &["train", "compare"], setting: true },
+    Flag { name: "registration-passes", commands: &["train"], setting: true },
     Flag { name: "model", commands: &["render", "eval", "import", "bench"], setting: false },
     Flag { name: "depth", commands: &["render", "eval"], setting: false },
     Flag { name: "m", commands: &["render", "eval", "compare"], setting: false },
@@ -115,6 +116,7 @@ pub(super) struct Flags {
     pub(super) region_vote: Option<(f32, f32)>,
     pub(super) exposure_correction: Option<bool>,
     pub(super) pose_registration: Option<bool>,
+    pub(super) registration_passes: Option<u32>,
     pub(super) frozen_stride: Option<u32>,
     /// Flags given, in order.
     pub(super) given: Vec<String>,
@@ -192,6 +194,13 @@ impl Flags {
             "resume" => self.resume = Some(path(p, name)?),
             "exposure-correction" => self.exposure_correction = Some(choice(p, name, &["on", "off"])? == "on"),
             "pose-registration" => self.pose_registration = Some(choice(p, name, &["on", "off"])? == "on"),
+            "registration-passes" => {
+                let n: u32 = positive(p, name)?;
+                if n > 4 {
+                    return Err(err(format!("--registration-passes: {n} is outside 1..=4")));
+                }
+                self.registration_passes = Some(n);
+            }
             "images" => self.images = Some(path(p, name)?),
             "background-match" => {
                 let s = text(p, name)?;

@@ -72,6 +72,11 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             )));
         }
     }
+    if f.registration_passes.is_some() && (f.pose_registration != Some(true) || f.background.is_some()) {
+        return Err(err(
+            "train: --registration-passes counts the passes of a NeRF's --pose-registration on (without --background)",
+        ));
+    }
     Ok(match command.as_str() {
         "train" => Command::Train(TrainArgs {
             data: f.need_path("data", &command)?,
@@ -97,6 +102,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             background_data: f.background_data.clone(),
             prior_settings: f.prior_args(),
             frozen_stride: f.frozen_stride,
+            registration_passes: f.registration_passes,
         }),
         "render" => Command::Render {
             model: f.need_path("model", &command)?,

@@ -9,8 +9,8 @@ commands:
          [--density-mix raw|activated] [--mixnet-encoding own|shared] [--prior all|none|warm-start,region,focus,beta,reach]
          [--background-data BG_DIR] [--beta U,E] [--region-floor S|off] [--focus-share F]
          [--region-vote V,S] [--frozen-stride N] [--exposure-correction on|off]
-         [--pose-registration on|off]] [--checkpoint-every N]
-         [--scene-views N]
+         [--pose-registration on|off]] [--pose-registration on [--registration-passes N]]
+         [--checkpoint-every N] [--scene-views N]
          train a NeRF on DIR's transforms_<split>.json (default split: train); with --background,
          a Residual-NeRF (residual + Mixnet over the frozen background; --mix sum: Residual-NeRF-S),
          by default background-aware (--prior all: start at the background, a change region voted
@@ -18,6 +18,9 @@ commands:
          half the rays from changed pixels and the rest from pixels whose ray crosses the region,
          the β regularisers at --beta's weights, default 0.02,0:
          penalty on unchanged rays, entropy; --prior none: the paper's Residual-NeRF).
+         A NeRF with --pose-registration on (for a background whose poses came from a robot
+         arm): a first NeRF, every image's pose registered against it, N times (default 1),
+         then the run at the registered poses.
          Checkpoints go to MODEL with '.ckpt' before the extension (every N steps, and on
          SIGINT/SIGTERM, which then exit 130/143); a finished run removes its checkpoint
   train  --resume CHECKPOINT --data DIR --out MODEL [--split NAME] [--csv FILE] [--threads N]
