@@ -110,6 +110,15 @@ fn check_import(c: &Capture2) {
     // The scene box from the points holds the table's centre (in the imported metric frame).
     let centre = r0() * Vec3::new(0.0, 0.0, 0.05) + shift;
     assert!(centre.cmpgt(bg.aabb.min).all() && centre.cmplt(bg.aabb.max).all(), "{:?}", bg.aabb);
+    // The images are named relative to the json, so the capture moves as a whole.
+    let json = std::fs::read_to_string(o.out.join("scene/transforms_train.json")).unwrap();
+    assert!(json.contains("\"../../images/scene/r_0.png\""), "{json}");
+    let moved = c.dir.with_extension("moved");
+    let _ = std::fs::remove_dir_all(&moved);
+    std::fs::rename(&c.dir, &moved).unwrap();
+    let scene_moved = Dataset::load(&moved.join("out/scene"), "train", &opts);
+    std::fs::rename(&moved, &c.dir).unwrap();
+    assert_eq!(scene_moved.unwrap().views[0].rgb, scene.views[0].rgb);
 }
 
 #[test]

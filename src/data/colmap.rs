@@ -518,12 +518,17 @@ pub fn import(o: &ImportOptions) -> Result<ImportReport, String> {
     };
     let mut jsons = Vec::new();
     for (dir, ims) in &groups {
+        // Image paths relative to the json's folder, so the images and the datasets move
+        // together (as the loader reads them: relative to the json).
+        std::fs::create_dir_all(dir).map_err(|e| format!("{}: cannot create: {e}", dir.display()))?;
+        let here = std::fs::canonicalize(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+        let from_json = relative_to(&images, &here);
         let frames: Vec<serde_json::Value> = ims
             .iter()
             .map(|im| {
                 let k = model.cameras[&im.camera].intrinsics;
                 let mut f = serde_json::json!({
-                    "file_path": images.join(&im.name).to_string_lossy(),
+                    "file_path": from_json.join(&im.name).to_string_lossy(),
                     "transform_matrix": im.pose.to_matrix(),
                     "colmap_image_id": im.id,
                     "fl_x": k.fx, "fl_y": k.fy, "cx": k.cx, "cy": k.cy, "w": k.width, "h": k.height,
@@ -551,6 +556,19 @@ pub fn import(o: &ImportOptions) -> Result<ImportReport, String> {
         written.push((path, n));
     }
     Ok(ImportReport { written, metres_per_unit, aabb })
+}
+
+/// `path` relative to the folder `base` (both absolute and canonical): `..` up to their common
+/// ancestor, then down to `path`. `path` itself when they share no root (another drive).
+fn relative_to(path: &Path, base: &Path) -> PathBuf {
+    let (p, b): (Vec<_>, Vec<_>) = (path.components().collect(), base.components().collect());
+    let common = p.iter().zip(&b).take_while(|(x, y)| x == y).count();
+    if common == 0 {
+        return path.to_path_buf();
+    }
+    let mut out: PathBuf = b[common..].iter().map(|_| std::path::Component::ParentDir).collect();
+    out.extend(&p[common..]);
+    out
 }
 
 /// The sparse points' 1st–99th percentile box per axis, grown by a quarter of its size on each
