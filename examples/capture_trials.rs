@@ -31,7 +31,7 @@ use residual_nerf::compare::{run_scene, EvalSet, Method};
 use residual_nerf::data::workspace::{self, Capture, Glass};
 use residual_nerf::geometry::Distortion;
 use residual_nerf::simd::Isa;
-use residual_nerf::train::register::registration_pass;
+use residual_nerf::train::register::registration_passes;
 
 /// The background's and the scene's capture of a trial.
 fn trial(name: &str) -> Result<(Capture, Capture), String> {
@@ -94,15 +94,19 @@ fn main() -> Result<(), String> {
             "pose5-two-passes" => 2,
             _ => 0,
         };
-        for _ in 0..passes {
-            let regs = registration_pass(isa, &bg.views, cfg.field.clone(), &cfg.train, |_| {})
-                .map_err(|e| format!("registration pass: {e}"))?;
-            for (v, r) in bg.views.iter_mut().zip(&regs) {
-                v.pose = r.pose;
-            }
-            let applied = regs.iter().filter(|r| r.applied).count();
-            eprintln!("{name}: {applied} of {} background poses registered", regs.len());
-        }
+        registration_passes(
+            isa,
+            &mut bg.views,
+            cfg.field.clone(),
+            &cfg.train,
+            passes,
+            |_, _| {},
+            |pass, regs| {
+                let applied = regs.iter().filter(|r| r.applied).count();
+                eprintln!("{name}: pass {pass}: {applied} of {} background poses registered", regs.len());
+            },
+        )
+        .map_err(|e| format!("registration pass: {e}"))?;
         let background = train_background(isa, &bg.views, &cfg)?;
         let methods = [Method::Dex, Method::RESIDUAL];
         let mut cfg = cfg.clone();

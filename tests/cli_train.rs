@@ -60,6 +60,21 @@ fn run_metadata(path: &Path) -> Vec<(String, String)> {
 
 const SETTINGS: [&str; 6] = ["--steps", "30", "--rays", "128", "--log2t", "12"];
 
+/// Runs `rnerf ARGS` (with `--checkpoint-every`), sends SIGINT once its first checkpoint
+/// `ckpt` appears (the run is under way), and returns its output.
+fn interrupted_at_first_checkpoint(args: &[&str], ckpt: &Path) -> Output {
+    let mut child = rnerf(args).spawn().unwrap();
+    let t0 = Instant::now();
+    while !ckpt.exists() {
+        assert!(t0.elapsed() < Duration::from_secs(120), "no checkpoint appeared");
+        assert!(child.try_wait().unwrap().is_none(), "the run ended before its first checkpoint");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let kill = Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
+    assert!(kill.success());
+    child.wait_with_output().unwrap()
+}
+
 #[test]
 fn an_interrupted_run_resumes_to_the_same_model() {
     let dir = scratch("resume");
@@ -78,17 +93,7 @@ fn an_interrupted_run_resumes_to_the_same_model() {
     let ckpt = checkpoint_path(&out);
     assert_eq!(ckpt, dir.join("m.ckpt.safetensors"));
     let args = [&["train", "--data", data_s, "--out", out_s, "--checkpoint-every", "5"], &SETTINGS[..]].concat();
-    let mut child = rnerf(&args).spawn().unwrap();
-    // The first checkpoint (step 5 of 30) shows the run is under way; then interrupt it.
-    let t0 = Instant::now();
-    while !ckpt.exists() {
-        assert!(t0.elapsed() < Duration::from_secs(120), "no checkpoint appeared");
-        assert!(child.try_wait().unwrap().is_none(), "the run ended before its first checkpoint");
-        std::thread::sleep(Duration::from_millis(5));
-    }
-    let kill = Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
-    assert!(kill.success());
-    let o = child.wait_with_output().unwrap();
+    let o = interrupted_at_first_checkpoint(&args, &ckpt);
     let msg = stderr(&o);
     assert_eq!(o.status.code(), Some(130), "SIGINT must exit 130: {msg}");
     assert!(msg.contains("interrupted") && msg.contains("--resume"), "{msg}");
@@ -173,13 +178,11 @@ fn a_registered_run_resumes_at_its_registered_poses() {
     workspace::workspace_capture(40, 10, 0.0, workspace::Glass::None, &noisy).write_split(&data, "train").unwrap();
     let data_s = data.to_str().unwrap();
     // Enough steps for a first NeRF that registration can use.
-    let register = ["--pose-registration", "on", "--steps", "100", "--rays", "256"];
+    let register = ["--pose-registration", "on", "--steps", "100", "--rays", "256", "--log2t", "12"];
     let straight = dir.join("straight.safetensors");
-    let o = rnerf(
-        &[&["train", "--data", data_s, "--out", straight.to_str().unwrap()], &SETTINGS[..], &register[..]].concat(),
-    )
-    .output()
-    .unwrap();
+    let o = rnerf(&[&["train", "--data", data_s, "--out", straight.to_str().unwrap()], &register[..]].concat())
+        .output()
+        .unwrap();
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).contains("registration:"), "{}", stderr(&o));
     let meta = run_metadata(&straight);
@@ -189,17 +192,8 @@ fn a_registered_run_resumes_at_its_registered_poses() {
     let out = dir.join("m.safetensors");
     let out_s = out.to_str().unwrap();
     let ckpt = checkpoint_path(&out);
-    let args = [&["train", "--data", data_s, "--out", out_s, "--checkpoint-every", "5"], &SETTINGS[..], &register[..]]
-        .concat();
-    let mut child = rnerf(&args).spawn().unwrap();
-    let t0 = Instant::now();
-    while !ckpt.exists() {
-        assert!(t0.elapsed() < Duration::from_secs(120), "no checkpoint appeared");
-        assert!(child.try_wait().unwrap().is_none(), "the run ended before its first checkpoint");
-        std::thread::sleep(Duration::from_millis(5));
-    }
-    assert!(Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap().success());
-    let o = child.wait_with_output().unwrap();
+    let args = [&["train", "--data", data_s, "--out", out_s, "--checkpoint-every", "5"], &register[..]].concat();
+    let o = interrupted_at_first_checkpoint(&args, &ckpt);
     assert_eq!(o.status.code(), Some(130), "{}", stderr(&o));
     let o = rnerf(&["train", "--resume", ckpt.to_str().unwrap(), "--data", data_s, "--out", out_s]).output().unwrap();
     assert!(o.status.success(), "{}", stderr(&o));

@@ -10,10 +10,10 @@ use crate::field::residual::{ResidualConfig, ResidualModel};
 use crate::field::{Nerf, NerfConfig, NerfField};
 use crate::files::write_atomic;
 use crate::io::{load_checkpoint, load_model, save_checkpoint, save_model, views_fingerprint, LoadedModel, ModelFile};
-use crate::render::Aabb;
+use crate::render::{Aabb, Pose};
 use crate::simd::Isa;
 use crate::train::prior::{residual_start, scene_prior, ColourCorrection, Prior};
-use crate::train::register::{registration_pass, Registration};
+use crate::train::register::{registration_passes, Registration};
 use crate::train::trainer::{TrainConfig, Trainer};
 use signal_hook::consts::{SIGINT, SIGTERM};
 use std::fmt::Write as _;
@@ -179,13 +179,17 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
             });
             let prior = prior.transpose()?;
             if let Some(p) = prior.as_ref().filter(|p| p.registrations.iter().any(Option::is_some)) {
-                let regs: Vec<&Registration> = p.registrations.iter().flatten().collect();
-                describe_registration("scene images' poses corrected against the background", &regs, regs.len());
+                let tried = p.registrations.iter().flatten().count();
+                describe_registration(
+                    "scene images' poses corrected against the background",
+                    p.registrations.iter().flatten(),
+                    tried,
+                );
             }
             let (mut corrections, mut poses) = (None, None);
             if let Some(p) = prior.as_ref().filter(|p| p.corrects_views()) {
-                let given = std::mem::take(&mut data.views);
-                data.views = p.corrected_views(&given);
+                let given: Vec<Pose> = data.views.iter().map(|v| v.pose).collect();
+                data.views = p.corrected_views(&data.views);
                 if p.registered_count() > 0 {
                     poses = Some(poses_json(&given, &data.views));
                 }
@@ -221,28 +225,37 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
             drive(a, &model, trainer, &extra)
         }
         _ => {
-            // With registration: a first NeRF, every image registered against it, and the run
-            // proper at the registered poses (docs/DECISIONS.md, "Registration against the
-            // background"). The first pass is not checkpointed: interrupted, it starts again.
-            let mut poses = None;
+            // With registration: passes of a NeRF, every image registered against it, then the
+            // run proper at the registered poses (docs/DECISIONS.md, "Registration against the
+            // background"). The passes are not checkpointed: interrupted, they start again.
             let passes = match a.prior_settings.pose_registration {
                 Some(true) => a.registration_passes.unwrap_or(1),
                 _ => 0,
             };
-            let given = if passes > 0 { data.views.clone() } else { Vec::new() };
-            for pass in 1..=passes {
-                let mut progress = Progress::new(&format!("registration pass {pass}/{passes}"), cfg.steps as u64);
-                let regs = registration_pass(isa, &data.views, field.clone(), &cfg, |s| {
-                    progress.update(s.step as u64 + 1, &format!("PSNR {:.2} dB", -10.0 * (s.loss as f64).log10()))
-                })
-                .map_err(|e| format!("registration pass {pass}: {e}"))?;
-                for (v, r) in data.views.iter_mut().zip(&regs) {
-                    v.pose = r.pose;
-                }
-                let what = format!("images' poses corrected against a NeRF of them (pass {pass}/{passes})");
-                describe_registration(&what, &regs.iter().collect::<Vec<_>>(), data.views.len());
-                poses = Some(poses_json(&given, &data.views));
-            }
+            let given: Vec<Pose> = data.views.iter().map(|v| v.pose).collect();
+            let mut progress: Option<(u32, Progress)> = None;
+            let n = data.views.len();
+            registration_passes(
+                isa,
+                &mut data.views,
+                field.clone(),
+                &cfg,
+                passes,
+                |pass, s| {
+                    if progress.as_ref().is_none_or(|p| p.0 != pass) {
+                        let name = format!("registration pass {pass}/{passes}");
+                        progress = Some((pass, Progress::new(&name, cfg.steps as u64)));
+                    }
+                    let psnr = -10.0 * (s.loss as f64).log10();
+                    progress.as_mut().expect("set above").1.update(s.step as u64 + 1, &format!("PSNR {psnr:.2} dB"));
+                },
+                |pass, regs| {
+                    let what = format!("images' poses corrected against a NeRF of them (pass {pass}/{passes})");
+                    describe_registration(&what, regs, n);
+                },
+            )
+            .map_err(|e| format!("registration pass: {e}"))?;
+            let poses = (passes > 0).then(|| poses_json(&given, &data.views));
             let model = NerfField::new(field);
             let extra = run_metadata(&cfg, a, None, poses.as_deref());
             let trainer = Trainer::new(isa, &model, data.aabb, &data.views, &cfg);
@@ -252,10 +265,11 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
 }
 
 /// Logs what a registration did: how many of `n` views it moved and by how much.
-fn describe_registration(what: &str, regs: &[&Registration], n: usize) {
-    let mut shifts: Vec<f64> = regs.iter().filter(|r| r.applied).map(|r| r.shift_px).collect();
+fn describe_registration<'a>(what: &str, regs: impl IntoIterator<Item = &'a Registration>, n: usize) {
+    let applied: Vec<&Registration> = regs.into_iter().filter(|r| r.applied).collect();
+    let mut shifts: Vec<f64> = applied.iter().map(|r| r.shift_px).collect();
     shifts.sort_by(f64::total_cmp);
-    let most = regs.iter().filter(|r| r.applied).fold((0f64, 0f64), |m, r| (m.0.max(r.degrees), m.1.max(r.distance)));
+    let most = applied.iter().fold((0f64, 0f64), |m, r| (m.0.max(r.degrees), m.1.max(r.distance)));
     match shifts.last() {
         None => eprintln!("rnerf train: registration: none of {n} {what}"),
         Some(largest) => eprintln!(
@@ -284,10 +298,10 @@ const TRAIN_PRIOR: &str = "train_prior";
 const COLOUR_CORRECTIONS: &str = "train_colour_corrections";
 const REGISTERED_POSES: &str = "train_registered_poses";
 
-/// Per view, `null` where `trained` keeps `given`'s pose, else the pose it trained at.
-fn poses_json(given: &[crate::data::View], trained: &[crate::data::View]) -> String {
+/// Per view, `null` where `trained` keeps the `given` pose, else the pose it trained at.
+fn poses_json(given: &[Pose], trained: &[crate::data::View]) -> String {
     let rows: Vec<Option<[[f32; 4]; 3]>> =
-        given.iter().zip(trained).map(|(g, t)| (g.pose != t.pose).then(|| t.pose.to_rows())).collect();
+        given.iter().zip(trained).map(|(g, t)| (*g != t.pose).then(|| t.pose.to_rows())).collect();
     serde_json::to_string(&rows).expect("plain json")
 }
 
@@ -300,7 +314,7 @@ fn apply_poses(views: &mut [crate::data::View], json: &str) -> Result<(), String
     }
     for (v, r) in views.iter_mut().zip(rows) {
         if let Some(r) = r {
-            v.pose = crate::render::Pose::from_rows(r);
+            v.pose = Pose::from_rows(r);
         }
     }
     Ok(())
@@ -568,7 +582,8 @@ mod tests {
         let scene = crate::data::workspace::workspace(8, 3, 0.0, true);
         let mut fresh = scene.views.clone();
         fresh[1].pose = crate::data::workspace::jitter(fresh[1].pose, 0.004, 0.3, crate::rng::Rng::new(5));
-        let json = poses_json(&scene.views, &fresh);
+        let given: Vec<Pose> = scene.views.iter().map(|v| v.pose).collect();
+        let json = poses_json(&given, &fresh);
         assert!(json.starts_with("[null,[[") && json.ends_with("]],null]"), "{json}");
         let mut resumed = scene.views.clone();
         apply_poses(&mut resumed, &json).unwrap();

@@ -54,7 +54,7 @@ impl BenchOptions {
     }
 }
 
-/// Runs every benchmark. Takes a minute or two at `scale = 1`.
+/// Runs every benchmark.
 pub fn run(opts: &BenchOptions, trained: Vec<TrainedView>) -> BenchReport {
     let mut progress = Progress(Instant::now());
     let kernels = kernels::measure(opts, &mut progress);

@@ -47,7 +47,7 @@ use crate::rng::Rng;
 use crate::simd::Isa;
 use crate::train::beta::BetaRegulariser;
 use crate::train::lift::{lift_region, LiftConfig, LiftReport};
-use crate::train::register::{register, Registration};
+use crate::train::register::{register_at, Registration};
 use crate::train::trainer::{Focus, TrainConfig};
 use glam::Vec3;
 use rayon::prelude::*;
@@ -163,11 +163,16 @@ impl ColourCorrection {
         std::array::from_fn(|k| (self.gain[k] * c[k]).clamp(0.0, 1.0))
     }
 
+    /// `rgb` corrected.
+    pub fn image(&self, rgb: &[[f32; 3]]) -> Vec<[f32; 3]> {
+        rgb.iter().map(|&x| self.apply(x)).collect()
+    }
+
     /// `v` with its image corrected (a copy of `v` for the identity).
     pub fn view(&self, v: &View) -> View {
         match *self == ColourCorrection::IDENTITY {
             true => v.clone(),
-            false => View { rgb: v.rgb.iter().map(|&x| self.apply(x)).collect(), ..v.clone() },
+            false => View { rgb: self.image(&v.rgb), intrinsics: v.intrinsics, pose: v.pose },
         }
     }
 
@@ -224,13 +229,8 @@ impl ScenePrior {
     /// appearance: each at its registered pose and its image through its [`ColourCorrection`]
     /// (views with neither are returned as they are).
     pub fn corrected_views(&self, views: &[View]) -> Vec<View> {
-        let views = self.registered_views(views);
-        views.iter().zip(&self.corrections).map(|(v, c)| c.view(v)).collect()
-    }
-
-    /// `views` at their registered poses.
-    pub fn registered_views(&self, views: &[View]) -> Vec<View> {
-        at_poses(views, &self.registrations)
+        let each = views.iter().zip(&self.registrations).zip(&self.corrections);
+        each.map(|((v, r), c)| View { pose: registered_pose(v, r), ..c.view(v) }).collect()
     }
 
     /// Whether [`Self::corrected_views`] differ from the views given (a pose registered or an
@@ -260,37 +260,35 @@ impl ScenePrior {
     }
 }
 
-/// `views` with each applied registration's pose.
-fn at_poses(views: &[View], registrations: &[Option<Registration>]) -> Vec<View> {
-    let pose = |v: &View, r: &Option<Registration>| r.filter(|r| r.applied).map_or(v.pose, |r| r.pose);
-    views.iter().zip(registrations).map(|(v, r)| View { pose: pose(v, r), ..v.clone() }).collect()
+/// `v`'s pose after registration `r` (its own when none was applied).
+fn registered_pose(v: &View, r: &Option<Registration>) -> crate::geometry::Pose {
+    r.filter(|r| r.applied).map_or(v.pose, |r| r.pose)
 }
 
-/// Registers every view whose pose is not a background view's against `background` rendered
-/// at its pose (one render each; [`register`]). Returns the registrations, and the renders of
-/// the views whose pose stays (the background there for [`background_at`]).
+/// Registers every view without a background image at its pose (`matches[i]` is `None`)
+/// against `background` rendered at its pose (one render each; [`register_at`]). Returns the
+/// registrations, and the renders of the views whose pose stays (the background there for
+/// [`background_at`]).
 #[allow(clippy::type_complexity)]
 fn register_views(
     isa: Isa,
     background: &Nerf,
-    bg_views: &[View],
     views: &[View],
+    matches: &[Option<&View>],
     sky: [f32; 3],
     m: DensityThreshold,
 ) -> (Vec<Option<Registration>>, Vec<Option<RenderedView>>) {
     let mut renderer = ViewRenderer::new();
     let scene = Scene::from(background);
-    views
-        .iter()
-        .map(|v| {
-            if bg_views.iter().any(|b| same_pose(b, v)) {
-                return (None, None);
-            }
-            let r = renderer.render(isa, &scene, &v.intrinsics, &v.pose, sky, m);
-            let reg = register(v, &r.rgb, &r.threshold_z);
+    let each = views.iter().zip(matches);
+    each.map(|(v, matched)| match matched {
+        Some(_) => (None, None),
+        None => {
+            let (reg, r) = register_at(isa, &mut renderer, &scene, v, sky, m);
             (Some(reg), (!reg.applied).then_some(r))
-        })
-        .unzip()
+        }
+    })
+    .unzip()
 }
 
 fn same_pose(a: &View, b: &View) -> bool {
@@ -304,46 +302,38 @@ fn same_pose(a: &View, b: &View) -> bool {
     same_k && dr <= SAME_POSE && (a.pose.translation - b.pose.translation).abs().max_element() <= SAME_POSE
 }
 
-/// The background at each of `views`' poses: its colours — `bg_views`' image at the same pose,
-/// else `background` rendered there (over `sky`) — and its threshold z-depth at `m` (rendered;
-/// NaN at holes), from one render per view (`rendered[i]` when given: view `i` rendered at its
-/// pose already). Returns them and how many views were matched.
-#[allow(clippy::type_complexity)]
+/// The background at each of `views`' poses: its colours — the background image at the same
+/// pose (`matches[i]`), else `background` rendered there (over `sky`) — and its threshold
+/// z-depth at `m` (rendered; NaN at holes), from one render per view (`rendered[i]` when given:
+/// view `i` rendered at its pose already).
 fn background_at(
     isa: Isa,
     background: &Nerf,
-    bg_views: &[View],
     views: &[View],
+    matches: &[Option<&View>],
     rendered: Vec<Option<RenderedView>>,
     sky: [f32; 3],
     m: DensityThreshold,
-) -> (Vec<(Vec<[f32; 3]>, Vec<f32>)>, usize) {
+) -> Vec<(Vec<[f32; 3]>, Vec<f32>)> {
     let mut renderer = ViewRenderer::new();
     let scene = Scene::from(background);
-    let mut matched = 0;
-    let out = views
-        .iter()
-        .zip(rendered)
-        .map(|(v, done)| {
-            let k = &v.intrinsics;
-            if let Some(r) = done {
-                return (r.rgb, r.threshold_z);
+    let each = views.iter().zip(matches).zip(rendered);
+    each.map(|((v, matched), done)| {
+        let k = &v.intrinsics;
+        match (done, matched) {
+            (Some(r), _) => (r.rgb, r.threshold_z),
+            (None, Some(b)) => {
+                let mut z = vec![0.0; (k.width * k.height) as usize];
+                renderer.depth(isa, &scene, k, &v.pose, m, &mut z);
+                (b.rgb.clone(), z)
             }
-            match bg_views.iter().find(|b| same_pose(b, v)) {
-                Some(b) => {
-                    matched += 1;
-                    let mut z = vec![0.0; (k.width * k.height) as usize];
-                    renderer.depth(isa, &scene, k, &v.pose, m, &mut z);
-                    (b.rgb.clone(), z)
-                }
-                None => {
-                    let r = renderer.render(isa, &scene, k, &v.pose, sky, m);
-                    (r.rgb, r.threshold_z)
-                }
+            (None, None) => {
+                let r = renderer.render(isa, &scene, k, &v.pose, sky, m);
+                (r.rgb, r.threshold_z)
             }
-        })
-        .collect();
-    (out, matched)
+        }
+    })
+    .collect()
 }
 
 /// 3×3 box filter (edges clamped).
@@ -531,19 +521,24 @@ pub fn scene_prior(
     m: DensityThreshold,
     cfg: &PriorConfig,
 ) -> ScenePrior {
+    // A view at a background image's pose is compared with that image; the rest are
+    // registered (when on) and compared with the background rendered at their pose.
+    let matches: Vec<Option<&View>> = views.iter().map(|v| bg_views.iter().find(|b| same_pose(b, v))).collect();
     let (registrations, rendered) = match cfg.register {
-        true => register_views(isa, background, bg_views, views, sky, m),
+        true => register_views(isa, background, views, &matches, sky, m),
         false => (vec![None; views.len()], (0..views.len()).map(|_| None).collect()),
     };
-    let registered;
+    let registered: Vec<View>;
     let views = match registrations.iter().flatten().any(|r| r.applied) {
         true => {
-            registered = at_poses(views, &registrations);
+            let each = views.iter().zip(&registrations);
+            registered = each.map(|(v, r)| View { pose: registered_pose(v, r), ..v.clone() }).collect();
             &registered[..]
         }
         false => views,
     };
-    let (bg, matched_views) = background_at(isa, background, bg_views, views, rendered, sky, m);
+    let bg = background_at(isa, background, views, &matches, rendered, sky, m);
+    let matched_views = matches.iter().flatten().count();
     let corrections: Vec<ColourCorrection> = views
         .par_iter()
         .zip(&bg)
@@ -562,7 +557,7 @@ pub fn scene_prior(
             let (w, h) = (v.intrinsics.width, v.intrinsics.height);
             match *c == ColourCorrection::IDENTITY {
                 true => change_map(&v.rgb, colours, w, h, cfg),
-                false => change_map(&c.view(v).rgb, colours, w, h, cfg),
+                false => change_map(&c.image(&v.rgb), colours, w, h, cfg),
             }
         })
         .collect();

@@ -28,8 +28,13 @@
 //! exposure correction of the registered image is fitted afterwards ([`super::prior`]).
 
 use super::prior::box3;
+use super::trainer::{train_nerf, StepStats, TrainConfig, TrainError};
 use crate::data::View;
+use crate::field::{Nerf, NerfConfig, NerfField};
 use crate::geometry::{pixel_ray, Intrinsics, Pose};
+use crate::render::view::{RenderedView, Scene};
+use crate::render::{DensityThreshold, ViewRenderer};
+use crate::simd::Isa;
 use glam::{DMat3, DVec3, Mat3};
 
 /// Mean image motion (pixels) of the selected points below which a registration is not
@@ -69,7 +74,6 @@ pub fn register(view: &View, colours: &[[f32; 3]], threshold_z: &[f32]) -> Regis
     // The points the background's pixels see, in the given camera's frame.
     let p0 = Rigid::of(&view.pose);
     let smooth1 = (box3(&view.rgb, w, h), box3(colours, w, h));
-    let smooth2 = (box3(&smooth1.0, w, h), box3(&smooth1.1, w, h));
     let mut points = Vec::new();
     for j in 2..h.saturating_sub(2) {
         for i in 2..w.saturating_sub(2) {
@@ -100,6 +104,7 @@ pub fn register(view: &View, colours: &[[f32; 3]], threshold_z: &[f32]) -> Regis
     }
     let stride = points.len().div_ceil(MAX_PIXELS);
     let points: Vec<(usize, DVec3)> = points.into_iter().step_by(stride).collect();
+    let smooth2 = (box3(&smooth1.0, w, h), box3(&smooth1.1, w, h));
 
     let mut delta = Rigid::IDENTITY; // P = P₀·Δ
     let mut gain = [1.0f64; 3];
@@ -221,6 +226,18 @@ fn mean_shift(k: &Intrinsics, points: &[(usize, DVec3)], delta: &Rigid) -> f64 {
     }
 }
 
+/// The length of a colour residual.
+fn norm(r: [f64; 3]) -> f64 {
+    (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt()
+}
+
+/// Where a point lands in the scene image, the (bilinear) image there, and its residual.
+struct Warp {
+    at: (f64, f64),
+    image: [f64; 3],
+    residual: [f64; 3],
+}
+
 /// One smoothing stage's alignment problem.
 struct Problem<'a> {
     k: &'a Intrinsics,
@@ -250,21 +267,25 @@ impl Problem<'_> {
         }))
     }
 
+    /// Point `i` at `(Δ, g)`: where it lands in the scene image, the image there, and the
+    /// residual (3 channels); `None` when it leaves the image.
+    fn warp(&self, i: usize, delta: &Rigid, gain: [f64; 3]) -> Option<Warp> {
+        let (p, x) = self.points[i];
+        let at = project(self.k, delta, x)?;
+        let image = self.sample(at.0, at.1)?;
+        let b = self.background[p];
+        Some(Warp { at, image, residual: std::array::from_fn(|c| gain[c] * image[c] - b[c] as f64) })
+    }
+
     /// Residual of point `i` (3 channels) at `(Δ, g)`, `None` when it leaves the image.
     fn residual(&self, i: usize, delta: &Rigid, gain: [f64; 3]) -> Option<[f64; 3]> {
-        let (p, x) = self.points[i];
-        let (u, v) = project(self.k, delta, x)?;
-        let s = self.sample(u, v)?;
-        let b = self.background[p];
-        Some(std::array::from_fn(|c| gain[c] * s[c] - b[c] as f64))
+        self.warp(i, delta, gain).map(|w| w.residual)
     }
 
     /// 1.4826 × the median residual norm at `(Δ, g)` (at least 0.01).
     fn robust_scale(&self, delta: &Rigid, gain: [f64; 3]) -> f64 {
-        let mut norms: Vec<f64> = (0..self.points.len())
-            .filter_map(|i| self.residual(i, delta, gain))
-            .map(|r| (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt())
-            .collect();
+        let mut norms: Vec<f64> =
+            (0..self.points.len()).filter_map(|i| self.residual(i, delta, gain)).map(norm).collect();
         if norms.is_empty() {
             return 0.01;
         }
@@ -291,7 +312,7 @@ impl Problem<'_> {
         let cap = huber(3.0 * scale);
         (0..self.points.len())
             .map(|i| match self.residual(i, delta, gain) {
-                Some(r) => huber((r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt()).min(cap),
+                Some(r) => huber(norm(r)).min(cap),
                 None => cap,
             })
             .sum()
@@ -304,19 +325,14 @@ impl Problem<'_> {
         let mut a = [[0.0f64; 9]; 9];
         let mut b = [0.0f64; 9];
         for (i, &(_, x)) in self.points.iter().enumerate() {
-            let Some(r) = self.residual(i, delta, gain) else { continue };
-            let wgt = Self::weight((r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt(), scale);
+            let Some(Warp { at: (u, v), image: s, residual: r }) = self.warp(i, delta, gain) else { continue };
+            let wgt = Self::weight(norm(r), scale);
             if wgt == 0.0 {
                 continue;
             }
-            let Some((u, v)) = project(self.k, delta, x) else { continue };
-            let (Some(s), Some(sx0), Some(sx1), Some(sy0), Some(sy1)) = (
-                self.sample(u, v),
-                self.sample(u - 0.5, v),
-                self.sample(u + 0.5, v),
-                self.sample(u, v - 0.5),
-                self.sample(u, v + 0.5),
-            ) else {
+            let (Some(sx0), Some(sx1), Some(sy0), Some(sy1)) =
+                (self.sample(u - 0.5, v), self.sample(u + 0.5, v), self.sample(u, v - 0.5), self.sample(u, v + 0.5))
+            else {
                 continue;
             };
             // d(u, v)/d(pose parameter) by central differences of the projection.
@@ -373,40 +389,51 @@ fn solve(mut a: [[f64; 9]; 9], mut b: [f64; 9]) -> Option<[f64; 9]> {
     b.iter().all(|v| v.is_finite()).then_some(b)
 }
 
-/// Registers each of `views` against `model` rendered at its pose (over `sky`, threshold
-/// depth at `m`): one render each.
-pub fn register_all(
-    isa: crate::simd::Isa,
-    model: &crate::field::Nerf,
-    views: &[View],
+/// Registers `view` against `model` (`scene`, through `renderer`) rendered at its pose over
+/// `sky`, threshold depth at `m`; returns the registration and that render.
+pub fn register_at(
+    isa: Isa,
+    renderer: &mut ViewRenderer<NerfField>,
+    scene: &Scene<'_, NerfField>,
+    view: &View,
     sky: [f32; 3],
-    m: crate::render::DensityThreshold,
-) -> Vec<Registration> {
-    let mut renderer = crate::render::ViewRenderer::new();
-    let scene = crate::render::view::Scene::from(model);
-    views
-        .iter()
-        .map(|v| {
-            let r = renderer.render(isa, &scene, &v.intrinsics, &v.pose, sky, m);
-            register(v, &r.rgb, &r.threshold_z)
-        })
-        .collect()
+    m: DensityThreshold,
+) -> (Registration, RenderedView) {
+    let r = renderer.render(isa, scene, &view.intrinsics, &view.pose, sky, m);
+    (register(view, &r.rgb, &r.threshold_z), r)
 }
 
-/// A NeRF's registration pass: a first NeRF trained on `views` (with `field` and `cfg`,
-/// `log` seeing its steps), and every view registered against it ([`register_all`], over
-/// `cfg.background`, threshold depth at the default σ). Training again at the registered poses
-/// gives the NeRF of a capture whose poses came from a robot arm (docs/DECISIONS.md,
-/// "Registration against the background").
-pub fn registration_pass(
-    isa: crate::simd::Isa,
-    views: &[View],
-    field: crate::field::NerfConfig,
-    cfg: &crate::train::trainer::TrainConfig,
-    log: impl FnMut(crate::train::trainer::StepStats),
-) -> Result<Vec<Registration>, crate::train::trainer::TrainError> {
-    let first = crate::train::trainer::train_nerf(isa, views, field, cfg, 10, log)?;
-    Ok(register_all(isa, &first, views, cfg.background, crate::render::DensityThreshold::DEFAULT))
+/// Registers each of `views` against `model` rendered at its pose ([`register_at`]).
+pub fn register_all(isa: Isa, model: &Nerf, views: &[View], sky: [f32; 3], m: DensityThreshold) -> Vec<Registration> {
+    let mut renderer = ViewRenderer::new();
+    let scene = Scene::from(model);
+    views.iter().map(|v| register_at(isa, &mut renderer, &scene, v, sky, m).0).collect()
+}
+
+/// A capture's registration passes (docs/DECISIONS.md, "Registration against the
+/// background"): `passes` times, a NeRF trained on `views` (with `field` and `cfg`; `log(pass,
+/// step)` sees its steps), every view registered against it ([`register_all`], over
+/// `cfg.background`, threshold depth at the default σ) and moved to its registered pose;
+/// `report(pass, registrations)` sees each pass's outcome. Training again at the final poses
+/// gives the NeRF of a capture whose poses came from a robot arm.
+pub fn registration_passes(
+    isa: Isa,
+    views: &mut [View],
+    field: NerfConfig,
+    cfg: &TrainConfig,
+    passes: u32,
+    mut log: impl FnMut(u32, StepStats),
+    mut report: impl FnMut(u32, &[Registration]),
+) -> Result<(), TrainError> {
+    for pass in 1..=passes {
+        let first = train_nerf(isa, views, field.clone(), cfg, 10, |s| log(pass, s))?;
+        let regs = register_all(isa, &first, views, cfg.background, DensityThreshold::DEFAULT);
+        for (v, r) in views.iter_mut().zip(&regs) {
+            v.pose = r.pose;
+        }
+        report(pass, &regs);
+    }
+    Ok(())
 }
 
 /// The rotation and the shift from pose `a` to pose `b` (degrees, scene units).
