@@ -8,7 +8,8 @@
 //! ```
 //!
 //! Defaults: 40-pixel images (the demo's), 400 steps, `dex,residual-paper,residual`; the
-//! environment variable `SPHERE=1` puts the demo's glass sphere in instead.
+//! environment variable `GLASS` picks the object: `tall` (the default, clear glass), `amber`
+//! (the same cylinder in amber glass) or `sphere` (the demo's glass sphere).
 
 use residual_nerf::app::{demo_config, train_background};
 use residual_nerf::compare::{run_scene, EvalSet, Method};
@@ -25,7 +26,12 @@ fn main() -> Result<(), String> {
         .split(',')
         .map(|m| Method::parse(m).ok_or_else(|| format!("METHODS: unknown method '{m}' ({})", Method::names())))
         .collect::<Result<Vec<_>, _>>()?;
-    let glass = if std::env::var_os("SPHERE").is_some() { Glass::Sphere } else { Glass::Tall };
+    let glass = match std::env::var("GLASS").as_deref() {
+        Err(_) | Ok("tall") => Glass::Tall,
+        Ok("amber") => Glass::TallAmber,
+        Ok("sphere") => Glass::Sphere,
+        Ok(other) => return Err(format!("GLASS: unknown object '{other}' (tall, amber, sphere)")),
+    };
     let isa = Isa::detect();
     let bg = workspace::workspace_with(size, 32, 0.0, Glass::None);
     let scene = workspace::workspace_with(size, 32, 0.0, glass);

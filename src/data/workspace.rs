@@ -36,7 +36,17 @@ pub enum Glass {
     Sphere,
     /// The tall thin glass [`TALL_GLASS`].
     Tall,
+    /// The same cylinder in amber glass (a beer bottle's: each pass through its surface keeps
+    /// [`AMBER_TINT`] of the light), dark enough that every method's density can find it where
+    /// the clear one is seen through at the test scenes' sizes: a tall object standing in
+    /// what was empty air, for the occupancy and change-region paths.
+    TallAmber,
 }
+
+/// Light kept per transmission through clear glass (a faint green, as thick glass has).
+pub const CLEAR_TINT: [f32; 3] = [0.96, 0.99, 0.97];
+/// Light kept per transmission through amber glass.
+pub const AMBER_TINT: [f32; 3] = [0.6, 0.4, 0.15];
 /// Index of refraction of the glass.
 pub const GLASS_IOR: f32 = 1.5;
 /// Point every camera looks at.
@@ -240,7 +250,7 @@ fn intersect(ray: &Ray, glass: Glass) -> Option<Hit> {
     let object = match glass {
         Glass::None => None,
         Glass::Sphere => sphere(ray, GLASS),
-        Glass::Tall => tall_glass(ray),
+        Glass::Tall | Glass::TallAmber => tall_glass(ray),
     };
     if let Some((t, n)) = object {
         keep(&mut best, t, n, Surface::Glass);
@@ -292,8 +302,7 @@ fn shade(ray: &Ray, glass: Glass, depth: u32) -> [f32; 3] {
             let k = 1.0 - eta * eta * (1.0 - cos_i * cos_i);
             let refract = eta * ray.dir + (eta * cos_i - k.sqrt()) * n;
             let refr = bounce(refract, -n);
-            // A faint green tint per transmission, as thick glass has.
-            let tint = [0.96, 0.99, 0.97];
+            let tint = if glass == Glass::TallAmber { AMBER_TINT } else { CLEAR_TINT };
             std::array::from_fn(|c| f * refl[c] + (1.0 - f) * refr[c] * tint[c])
         }
     }
