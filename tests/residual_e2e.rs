@@ -2,7 +2,9 @@
 //! background NeRF on the empty workspace, a Residual-NeRF (residual + Mixnet over the frozen
 //! background) trained on the scene with the glass sphere has a lower Dex-NeRF threshold-depth
 //! error inside the glass crops than a plain NeRF (Dex-NeRF) trained on the same scene views
-//! for the same number of steps; and so it does when both captures come through a lens.
+//! for the same number of steps; and so it does when both captures come through a lens. A tall
+//! object standing in what was empty air in the background is found by Residual-NeRF as by
+//! Dex-NeRF.
 
 use residual_nerf::data::workspace::{self, Capture, Glass, SKY};
 use residual_nerf::eval::DepthErrors;
@@ -97,4 +99,47 @@ fn through_a_lens_the_depth_error_stays_within_the_margin() {
             p.mae()
         );
     }
+}
+
+/// A tall object standing in what was empty air in the background (issue: the mixed field's
+/// occupancy starts from the background's, whose air there is empty). The synthesised clear
+/// glass cylinder is seen through by every method at sizes a test can afford (object MAE
+/// 0.46–0.56 m at 40 px); the same cylinder in amber glass is found by Dex-NeRF, so Residual-
+/// NeRF (the crate's default, background-aware method) must find it too: on the object's mask
+/// its threshold depth is within 10 cm of the truth on average and within 3 cm of Dex-NeRF's
+/// error. Seen through, the error is the distance to the table or wall behind (≥ 0.4 m).
+/// 40 px, 32 views, 200 steps (avx2, release: Dex-NeRF 0.040 m, Residual-NeRF 0.023 m).
+#[test]
+fn a_tall_object_in_former_empty_air_is_found() {
+    use residual_nerf::app::{demo_config, train_background};
+    use residual_nerf::compare::{run_scene, EvalSet, Method};
+    let (isa, size) = (Isa::detect(), 40);
+    let bg = workspace::workspace_with(size, 32, 0.0, Glass::None);
+    let scene = workspace::workspace_with(size, 32, 0.0, Glass::TallAmber);
+    let test = EvalSet::from_synth(&workspace::workspace_with(size, 4, 0.37, Glass::TallAmber));
+    let mut cfg = demo_config(200, 0);
+    cfg.eval_every = 200; // the final figures only: no curve
+    let background = train_background(isa, &bg.views, &cfg).expect("trains");
+    let methods = [Method::Dex, Method::RESIDUAL];
+    let r = run_scene(isa, "tall", &background, &bg.views, &scene.views, &test, &methods, &cfg, &mut |_, _| {})
+        .expect("trains");
+    let [dex, res] = [0, 1].map(|i| &r.methods[i].threshold.object);
+    eprintln!(
+        "tall amber object, object MAE / see-through: Dex-NeRF {:.4} m / {:.1}%, Residual-NeRF {:.4} m / {:.1}%",
+        dex.mae(),
+        100.0 * dex.see_through_rate(),
+        res.mae(),
+        100.0 * res.see_through_rate()
+    );
+    assert!(
+        dex.mae() < 0.1,
+        "Dex-NeRF does not find the amber cylinder ({:.4} m): the test scene is not learnable",
+        dex.mae()
+    );
+    assert!(
+        res.mae() < 0.1 && res.mae() <= dex.mae() + 0.03,
+        "Residual-NeRF misses the tall object: {:.4} m against Dex-NeRF's {:.4} m",
+        res.mae(),
+        dex.mae()
+    );
 }

@@ -81,6 +81,31 @@ fn the_tall_glass_rises_above_the_sphere() {
     }
 }
 
+/// The amber cylinder has the clear one's geometry (same masks and depth) and darkens what is
+/// seen through it, blue most (its tint keeps 0.15 of blue per pass, twice through a cylinder).
+#[test]
+fn amber_glass_is_the_tall_glass_darkened() {
+    let clear = workspace::workspace_with(32, 4, 0.0, Glass::Tall);
+    let amber = workspace::workspace_with(32, 4, 0.0, Glass::TallAmber);
+    assert_eq!(clear.masks, amber.masks);
+    for v in 0..4 {
+        let on_mask = |s: &residual_nerf::data::synth::SynthScene, c: usize| -> f32 {
+            let px: Vec<f32> = (0..s.masks[v].len()).filter(|&p| s.masks[v][p]).map(|p| s.views[v].rgb[p][c]).collect();
+            px.iter().sum::<f32>() / px.len() as f32
+        };
+        for (a, b) in clear.depth[v].iter().zip(&amber.depth[v]) {
+            assert!(a == b || (a.is_nan() && b.is_nan()));
+        }
+        let (blue_clear, blue_amber) = (on_mask(&clear, 2), on_mask(&amber, 2));
+        let (red_clear, red_amber) = (on_mask(&clear, 0), on_mask(&amber, 0));
+        assert!(blue_amber < 0.5 * blue_clear, "view {v}: blue {blue_amber} against {blue_clear}");
+        assert!(
+            red_amber < red_clear && red_amber / red_clear > blue_amber / blue_clear,
+            "view {v}: red {red_amber} against {red_clear}"
+        );
+    }
+}
+
 /// A capture through a lens (OpenCV's radial-tangential model, and a fisheye) written in the
 /// dataset layout loads back with the same lens and the same rays; the lens bends the rays
 /// (an image corner's ray differs from the pinhole's).
