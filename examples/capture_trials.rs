@@ -24,7 +24,10 @@
 //! `pose2-scene-registered` / `pose5-scene-registered` (the scene's registration only);
 //! `pose2-unregistered` / `pose5-unregistered` (neither, `--pose-registration off`);
 //! `pose5-scene-noise` / `pose5-scene-noise-unregistered` (exact background poses, the scene's
-//! off by 5 mm and 0.5°, with and without the scene's registration).
+//! off by 5 mm and 0.5°, with and without the scene's registration); `exposure-jitter` (every
+//! image of both captures through its own gain per channel, uniform in 1 ± 0.15: auto-exposure
+//! and white balance moving from shot to shot; the scene's images corrected to the background's
+//! appearance one by one, the prior's default; the background's trained as they are).
 
 use residual_nerf::app::{demo_config, train_background};
 use residual_nerf::compare::{run_scene, EvalSet, Method};
@@ -54,8 +57,12 @@ fn trial(name: &str) -> Result<(Capture, Capture), String> {
             (noisy(0.005, 0.5, 1), noisy(0.005, 0.5, 2))
         }
         "pose5-scene-noise" | "pose5-scene-noise-unregistered" => (plain, noisy(0.005, 0.5, 2)),
+        "exposure-jitter" => {
+            let jitter = |seed| Capture { gain_jitter: Some((0.15, seed)), ..plain };
+            (jitter(1), jitter(2))
+        }
         other => {
-            return Err(format!("TRIALS: unknown trial '{other}' (none, radial, radial-ignored, fisheye, exposure, exposure-uncorrected, pose2, pose2-scene-registered, pose2-unregistered, pose5, pose5-two-passes, pose5-scene-registered, pose5-unregistered, pose5-scene-noise, pose5-scene-noise-unregistered)"))
+            return Err(format!("TRIALS: unknown trial '{other}' (none, radial, radial-ignored, fisheye, exposure, exposure-uncorrected, pose2, pose2-scene-registered, pose2-unregistered, pose5, pose5-two-passes, pose5-scene-registered, pose5-unregistered, pose5-scene-noise, pose5-scene-noise-unregistered, exposure-jitter)"))
         }
     })
 }

@@ -106,6 +106,36 @@ fn amber_glass_is_the_tall_glass_darkened() {
     }
 }
 
+/// Exposure jitter: each view's colours are the plain capture's through a gain per channel
+/// within 1 ± spread (the dark pixels, far from saturation, show it), different from view to view;
+/// depth and masks are the plain capture's.
+#[test]
+fn exposure_jitter_gives_each_view_its_own_gain() {
+    use residual_nerf::data::workspace::Capture;
+    let plain = workspace::workspace_capture(32, 4, 0.0, Glass::Sphere, &Capture::default());
+    let jitter = Capture { gain_jitter: Some((0.15, 5)), ..Default::default() };
+    let shot = workspace::workspace_capture(32, 4, 0.0, Glass::Sphere, &jitter);
+    assert_eq!(plain.masks, shot.masks);
+    let mut gains = Vec::new();
+    for v in 0..4 {
+        for (a, b) in plain.depth[v].iter().zip(&shot.depth[v]) {
+            assert!(a == b || (a.is_nan() && b.is_nan()));
+        }
+        let g: [f32; 3] = std::array::from_fn(|k| {
+            let (mut num, mut den) = (0.0, 0.0);
+            for (p, s) in plain.views[v].rgb.iter().zip(&shot.views[v].rgb) {
+                if p[k] < 0.8 && s[k] < 1.0 {
+                    (num, den) = (num + s[k], den + p[k]);
+                }
+            }
+            num / den
+        });
+        assert!(g.iter().all(|g| (0.85 - 1e-4..=1.15 + 1e-4).contains(g)), "view {v}: gain {g:?}");
+        gains.push(g);
+    }
+    assert!(gains.windows(2).all(|w| w[0] != w[1]), "views share a gain: {gains:?}");
+}
+
 /// A capture through a lens (OpenCV's radial-tangential model, and a fisheye) written in the
 /// dataset layout loads back with the same lens and the same rays; the lens bends the rays
 /// (an image corner's ray differs from the pinhole's).

@@ -332,11 +332,15 @@ pub struct Capture {
     /// length (metres) and a rotation of this angle (degrees) about a random axis, drawn
     /// from the seed (the images are rendered at the true poses).
     pub pose_noise: Option<(f32, f32, u64)>,
+    /// Exposure moving from shot to shot (auto-exposure and auto white balance): each view's
+    /// gain is [`Capture::gain`] times a factor per channel drawn uniformly in `1 ± spread` from
+    /// the seed and the view's index.
+    pub gain_jitter: Option<(f32, u64)>,
 }
 
 impl Default for Capture {
     fn default() -> Self {
-        Capture { distortion: Distortion::None, gain: [1.0; 3], pose_noise: None }
+        Capture { distortion: Distortion::None, gain: [1.0; 3], pose_noise: None, gain_jitter: None }
     }
 }
 
@@ -354,7 +358,15 @@ pub fn workspace_capture(size: u32, n_views: usize, phase: f32, glass: Glass, ca
             let elev = s.asin();
             let eye = TARGET + CAMERA_DISTANCE * Vec3::new(elev.cos() * a.cos(), elev.cos() * a.sin(), elev.sin());
             let pose = Pose::look_at(eye, TARGET);
-            let (rgb, z, mask) = render_view(&k, &pose, glass, capture.gain);
+            let gain = match capture.gain_jitter {
+                Some((spread, seed)) => {
+                    // A stream apart from the pose noise's (which uses the view's index).
+                    let mut rng = crate::rng::Rng::stream(seed, (1 << 32) + v as u64);
+                    capture.gain.map(|g| g * rng.uniform(1.0 - spread, 1.0 + spread))
+                }
+                None => capture.gain,
+            };
+            let (rgb, z, mask) = render_view(&k, &pose, glass, gain);
             let pose = match capture.pose_noise {
                 Some((metres, degrees, seed)) => jitter(pose, metres, degrees, crate::rng::Rng::stream(seed, v as u64)),
                 None => pose,
