@@ -3,7 +3,7 @@
 //! exposure and white balance changed against the background's, the glass's object-mask depth
 //! error stays within a stated margin of the unchanged capture's.
 //!
-//! Measured at this size (64 px, 24 views, 300 steps; 2026-12-02, commit COMMIT300, AVX-512
+//! Measured at this size (64 px, 24 views, 300 steps; 2026-12-02, commit f5a0ebc, AVX-512
 //! host): the unchanged capture 0.153 m, the changed one corrected 0.154 m (both printed by this
 //! test). With the correction switched off the changed capture scored 0.495 m, so the margin
 //! separates them; at 48 px and 300 steps the glass is lost even unchanged (0.54 m), at 400 steps
