@@ -6,6 +6,13 @@ use residual_nerf::data::workspace::{self, Glass, GLASS};
 use residual_nerf::data::{Dataset, LoadOptions};
 use std::path::Path;
 
+/// Two renders of the same geometry: equal depth, NaN where either has no surface.
+fn assert_same_depth(a: &[f32], b: &[f32]) {
+    for (x, y) in a.iter().zip(b) {
+        assert!(x == y || (x.is_nan() && y.is_nan()), "{x} against {y}");
+    }
+}
+
 #[test]
 fn glass_changes_only_the_masked_pixels_and_crops_hold_the_mask() {
     let t0 = std::time::Instant::now();
@@ -93,9 +100,7 @@ fn amber_glass_is_the_tall_glass_darkened() {
             let px: Vec<f32> = (0..s.masks[v].len()).filter(|&p| s.masks[v][p]).map(|p| s.views[v].rgb[p][c]).collect();
             px.iter().sum::<f32>() / px.len() as f32
         };
-        for (a, b) in clear.depth[v].iter().zip(&amber.depth[v]) {
-            assert!(a == b || (a.is_nan() && b.is_nan()));
-        }
+        assert_same_depth(&clear.depth[v], &amber.depth[v]);
         let (blue_clear, blue_amber) = (on_mask(&clear, 2), on_mask(&amber, 2));
         let (red_clear, red_amber) = (on_mask(&clear, 0), on_mask(&amber, 0));
         assert!(blue_amber < 0.5 * blue_clear, "view {v}: blue {blue_amber} against {blue_clear}");
@@ -118,9 +123,7 @@ fn exposure_jitter_gives_each_view_its_own_gain() {
     assert_eq!(plain.masks, shot.masks);
     let mut gains = Vec::new();
     for v in 0..4 {
-        for (a, b) in plain.depth[v].iter().zip(&shot.depth[v]) {
-            assert!(a == b || (a.is_nan() && b.is_nan()));
-        }
+        assert_same_depth(&plain.depth[v], &shot.depth[v]);
         let g: [f32; 3] = std::array::from_fn(|k| {
             let (mut num, mut den) = (0.0, 0.0);
             for (p, s) in plain.views[v].rgb.iter().zip(&shot.views[v].rgb) {

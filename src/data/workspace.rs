@@ -47,6 +47,16 @@ pub enum Glass {
 pub const CLEAR_TINT: [f32; 3] = [0.96, 0.99, 0.97];
 /// Light kept per transmission through amber glass.
 pub const AMBER_TINT: [f32; 3] = [0.6, 0.4, 0.15];
+
+impl Glass {
+    /// Light the object's glass keeps per transmission.
+    pub fn tint(self) -> [f32; 3] {
+        match self {
+            Glass::TallAmber => AMBER_TINT,
+            Glass::None | Glass::Sphere | Glass::Tall => CLEAR_TINT,
+        }
+    }
+}
 /// Index of refraction of the glass.
 pub const GLASS_IOR: f32 = 1.5;
 /// Point every camera looks at.
@@ -302,7 +312,7 @@ fn shade(ray: &Ray, glass: Glass, depth: u32) -> [f32; 3] {
             let k = 1.0 - eta * eta * (1.0 - cos_i * cos_i);
             let refract = eta * ray.dir + (eta * cos_i - k.sqrt()) * n;
             let refr = bounce(refract, -n);
-            let tint = if glass == Glass::TallAmber { AMBER_TINT } else { CLEAR_TINT };
+            let tint = glass.tint();
             std::array::from_fn(|c| f * refl[c] + (1.0 - f) * refr[c] * tint[c])
         }
     }
