@@ -99,6 +99,11 @@ impl RaySpan {
     pub const EMPTY: RaySpan = RaySpan { near: 0.0, far: 0.0, steps: 0 };
 }
 
+/// How far before the DDA's entry time (in lattice steps) marching resumes after crossing
+/// empty cells: the crossing times are sums, so they carry rounding error, and the cell a
+/// step's midpoint falls in (`floor(q0 + t·dq)`) is the one that decides.
+const RESUME_SLACK: f32 = 0.01;
+
 /// Cells per edge of a coarse block: a block bit says whether any of its `BLOCK³` cells is
 /// occupied, so marching crosses empty blocks (most of a room's air) in one step.
 pub const BLOCK: u32 = 4;
@@ -395,9 +400,12 @@ impl OccupancyGrid {
                 k += run;
             } else {
                 // Walk the cells after this empty one (3-D DDA) to the next occupied one, then
-                // resume at the first step whose midpoint lies past the entry into it.
+                // resume at the first step whose midpoint lies past the entry into it, less
+                // RESUME_SLACK: the DDA's summed crossing times can land a few ulps late, and
+                // a midpoint that close to the entry is checked above by its own cell rather
+                // than skipped (when that cell is empty, the next pass moves on by one step).
                 let entry = self.next_occupied(q0, dq, c, res, span.far);
-                let past = floor1(((entry - near) / dt - 0.5).min(end as f32)) + 1.0;
+                let past = floor1(((entry - near) / dt - 0.5 - RESUME_SLACK).min(end as f32)) + 1.0;
                 k = (past.max(0.0) as u32).max(k + 1);
             }
         }
