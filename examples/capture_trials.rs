@@ -5,7 +5,7 @@
 //! views of the glass (the depth a robot asks for), on the glass's mask.
 //!
 //! ```text
-//! cargo run --release --example capture_trials [SIZE [STEPS [TRIALS]]]
+//! cargo run --release --example capture_trials [SIZE [STEPS [TRIALS [SEED]]]]
 //! cargo run --release --example capture_trials 96 600 none,radial,radial-ignored,fisheye,exposure,exposure-uncorrected
 //! cargo run --release --example capture_trials 96 600 pose2,pose2-scene-registered,pose2-unregistered,pose5,pose5-scene-registered,pose5-unregistered,pose5-scene-noise,pose5-scene-noise-unregistered
 //! ```
@@ -27,7 +27,12 @@
 //! off by 5 mm and 0.5°, with and without the scene's registration); `exposure-jitter` (every
 //! image of both captures through its own gain per channel, uniform in 1 ± 0.15: auto-exposure
 //! and white balance moving from shot to shot; the scene's images corrected to the background's
-//! appearance one by one, the prior's default; the background's trained as they are).
+//! appearance one by one, the prior's default; the background's trained as they are);
+//! `exposure-jitter-gains` (the same, every run, the background's and both methods' on the
+//! scene, learning a gain per image with the field: `rnerf train --image-gains on`);
+//! `exposure-jitter-gains-background` (gains learned by the background's run only);
+//! `none-gains` (one exposure, every run learning gains: what they cost where nothing moves).
+//! SEED (default 0) seeds every run's initialisation and sampling, not the captures.
 
 use residual_nerf::app::{demo_config, train_background};
 use residual_nerf::compare::{run_scene, EvalSet, Method};
@@ -35,6 +40,7 @@ use residual_nerf::data::workspace::{self, Capture, Glass};
 use residual_nerf::geometry::Distortion;
 use residual_nerf::simd::Isa;
 use residual_nerf::train::register::registration_passes;
+use residual_nerf::train::trainer::GAIN_PRIOR;
 
 /// The background's and the scene's capture of a trial.
 fn trial(name: &str) -> Result<(Capture, Capture), String> {
@@ -42,7 +48,7 @@ fn trial(name: &str) -> Result<(Capture, Capture), String> {
     let lens = |distortion| Capture { distortion, ..plain };
     let noisy = |metres, degrees, seed| Capture { pose_noise: Some((metres, degrees, seed)), ..plain };
     Ok(match name {
-        "none" => (plain, plain),
+        "none" | "none-gains" => (plain, plain),
         "radial" | "radial-ignored" => {
             let l = lens(Distortion::Radial { k: [-0.15, 0.03, 0.0, 0.0], p: [0.002, -0.001] });
             (l, l)
@@ -57,12 +63,12 @@ fn trial(name: &str) -> Result<(Capture, Capture), String> {
             (noisy(0.005, 0.5, 1), noisy(0.005, 0.5, 2))
         }
         "pose5-scene-noise" | "pose5-scene-noise-unregistered" => (plain, noisy(0.005, 0.5, 2)),
-        "exposure-jitter" => {
+        "exposure-jitter" | "exposure-jitter-gains" | "exposure-jitter-gains-background" => {
             let jitter = |seed| Capture { gain_jitter: Some((0.15, seed)), ..plain };
             (jitter(1), jitter(2))
         }
         other => {
-            return Err(format!("TRIALS: unknown trial '{other}' (none, radial, radial-ignored, fisheye, exposure, exposure-uncorrected, pose2, pose2-scene-registered, pose2-unregistered, pose5, pose5-two-passes, pose5-scene-registered, pose5-unregistered, pose5-scene-noise, pose5-scene-noise-unregistered, exposure-jitter)"))
+            return Err(format!("TRIALS: unknown trial '{other}' (none, none-gains, radial, radial-ignored, fisheye, exposure, exposure-uncorrected, pose2, pose2-scene-registered, pose2-unregistered, pose5, pose5-two-passes, pose5-scene-registered, pose5-unregistered, pose5-scene-noise, pose5-scene-noise-unregistered, exposure-jitter, exposure-jitter-gains, exposure-jitter-gains-background)"))
         }
     })
 }
@@ -77,9 +83,10 @@ fn main() -> Result<(), String> {
         .split(',')
         .collect();
     let isa = Isa::detect();
-    let cfg = demo_config(steps, 0);
+    let seed: u64 = args.get(3).map_or(Ok(0), |s| s.parse().map_err(|_| format!("SEED: '{s}' is not a number")))?;
+    let cfg = demo_config(steps, seed);
     let test = EvalSet::from_synth(&workspace::workspace_with(size, 4, 0.37, Glass::Sphere));
-    eprintln!("{size}x{size} images, 32 views, {steps} steps, cpu level {isa}");
+    eprintln!("{size}x{size} images, 32 views, {steps} steps, seed {seed}, cpu level {isa}");
     println!(
         "| trial | method | object MAE (m) | holes | see-through | floaters | crop w/o object MAE (m) | PSNR (dB) |"
     );
@@ -114,9 +121,15 @@ fn main() -> Result<(), String> {
             },
         )
         .map_err(|e| format!("registration pass: {e}"))?;
-        let background = train_background(isa, &bg.views, &cfg)?;
-        let methods = [Method::Dex, Method::RESIDUAL];
         let mut cfg = cfg.clone();
+        if name.contains("-gains") {
+            cfg.train.image_gains = Some(GAIN_PRIOR);
+        }
+        let background = train_background(isa, &bg.views, &cfg)?;
+        if name.ends_with("-gains-background") {
+            cfg.train.image_gains = None;
+        }
+        let methods = [Method::Dex, Method::RESIDUAL];
         cfg.prior.exposure = name != "exposure-uncorrected";
         cfg.prior.register = !name.ends_with("-unregistered");
         let r = run_scene(isa, name, &background, &bg.views, &scene.views, &test, &methods, &cfg, &mut |_, _| {})?;

@@ -16,7 +16,9 @@ use residual_nerf::io::{load_checkpoint, save_checkpoint, save_nerf, views_finge
 use residual_nerf::render::{Aabb, OccupancyConfig, OccupancyGrid};
 use residual_nerf::rng::Rng;
 use residual_nerf::simd::Isa;
-use residual_nerf::train::trainer::{Focus, TrainConfig, TrainError, TrainState, Trainer, MAX_BAD_STEPS_IN_A_ROW};
+use residual_nerf::train::trainer::{
+    Focus, TrainConfig, TrainError, TrainState, Trainer, GAIN_PRIOR, MAX_BAD_STEPS_IN_A_ROW,
+};
 use std::path::{Path, PathBuf};
 
 fn scratch(name: &str) -> PathBuf {
@@ -53,6 +55,15 @@ fn same_state<P: PartialEq>(a: &TrainState<P>, b: &TrainState<P>) {
     for (x, y) in a.adams.iter().zip(&b.adams) {
         assert_eq!(x.steps(), y.steps());
         assert_eq!(x.moments(), y.moments(), "Adam moments differ after resuming");
+    }
+    match (&a.gains, &b.gains) {
+        (Some(x), Some(y)) => {
+            assert_eq!(x.log_gains, y.log_gains, "image gains differ after resuming");
+            assert_eq!(x.adam.moments(), y.adam.moments(), "the gains' Adam moments differ after resuming");
+            assert_eq!(x.adam.steps(), y.adam.steps());
+        }
+        (None, None) => {}
+        _ => panic!("one state has learned gains, the other not"),
     }
 }
 
@@ -100,10 +111,15 @@ fn resume_matches<M: ModelFile>(
 fn a_resumed_nerf_run_equals_an_uninterrupted_one() {
     let scene = workspace::workspace(16, 8, 0.0, false);
     let field = NerfField::new(field_config(scene.aabb));
-    resume_matches(&field, scene.aabb, &scene.views, &scratch("nerf"), &train_config(40), |m| match m {
-        LoadedModel::Nerf(n) => (n.params, n.occupancy),
-        LoadedModel::Residual(_) => panic!("saved a NeRF"),
-    });
+    // Plain, and learning a gain per image (the gains and their moments ride in the file).
+    let mut gains = train_config(40);
+    gains.image_gains = Some(GAIN_PRIOR);
+    for cfg in [train_config(40), gains] {
+        resume_matches(&field, scene.aabb, &scene.views, &scratch("nerf"), &cfg, |m| match m {
+            LoadedModel::Nerf(n) => (n.params, n.occupancy),
+            LoadedModel::Residual(_) => panic!("saved a NeRF"),
+        });
+    }
 }
 
 #[test]

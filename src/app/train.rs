@@ -141,6 +141,9 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
     cfg.near_gradient_distance = a.near_grad.unwrap_or(cfg.near_gradient_distance);
     cfg.random_background &= a.random_bg.unwrap_or(true);
     cfg.frozen_stride = a.frozen_stride.unwrap_or(cfg.frozen_stride);
+    if a.image_gains == Some(true) {
+        cfg.image_gains = Some(crate::train::trainer::GAIN_PRIOR);
+    }
     let isa = Isa::detect();
     describe_run(&cfg, field.grid.log2_table_size, isa);
     match (background, &a.background) {
@@ -362,6 +365,7 @@ fn run_metadata(
         ("train_random_background", cfg.random_background.to_string()),
         ("train_near_gradient_distance", cfg.near_gradient_distance.to_string()),
         ("train_frozen_stride", cfg.frozen_stride.to_string()),
+        ("train_image_gains", cfg.image_gains.map_or("off".into(), |l| format!("on (prior {l})"))),
         ("train_data", a.data.display().to_string()),
         ("train_split", a.split.clone()),
     ];

@@ -137,6 +137,8 @@ pub struct TrainArgs {
     /// Lattice steps per training sample outside a residual model's change region
     /// (`--frozen-stride N`).
     pub frozen_stride: Option<u32>,
+    /// Learn a gain per training image with the field (`--image-gains on|off`; default off).
+    pub image_gains: Option<bool>,
     /// Registration passes of a NeRF trained with `--pose-registration on`
     /// (`--registration-passes N`; default 1).
     pub registration_passes: Option<u32>,
@@ -181,6 +183,8 @@ pub struct CompareArgs {
     /// Lattice steps per training sample outside a residual model's change region
     /// (`--frozen-stride N`).
     pub frozen_stride: Option<u32>,
+    /// Learn a gain per training image with the field (`--image-gains on|off`; default off).
+    pub image_gains: Option<bool>,
 }
 
 /// The background prior's settings `rnerf train` and `rnerf compare` share; each `None` keeps

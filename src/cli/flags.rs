@@ -48,6 +48,7 @@ pub(super) const FLAGS: &[Flag] = &[
     Flag { name: "focus-share", commands: &["train", "compare"], setting: true },
     Flag { name: "region-vote", commands: &["train", "compare"], setting: true },
     Flag { name: "frozen-stride", commands: &["train", "compare"], setting: true },
+    Flag { name: "image-gains", commands: &["train", "compare"], setting: true },
     Flag { name: "exposure-correction", commands: &["train", "compare"], setting: true },
     Flag { name: "pose-registration", commands: &["train", "compare"], setting: true },
     Flag { name: "registration-passes", commands: &["train"], setting: true },
@@ -118,6 +119,7 @@ pub(super) struct Flags {
     pub(super) pose_registration: Option<bool>,
     pub(super) registration_passes: Option<u32>,
     pub(super) frozen_stride: Option<u32>,
+    pub(super) image_gains: Option<bool>,
     /// Flags given, in order.
     pub(super) given: Vec<String>,
     pub(super) images: Option<PathBuf>,
@@ -194,6 +196,7 @@ impl Flags {
             "resume" => self.resume = Some(path(p, name)?),
             "exposure-correction" => self.exposure_correction = Some(choice(p, name, &["on", "off"])? == "on"),
             "pose-registration" => self.pose_registration = Some(choice(p, name, &["on", "off"])? == "on"),
+            "image-gains" => self.image_gains = Some(choice(p, name, &["on", "off"])? == "on"),
             "registration-passes" => {
                 let n: u32 = positive(p, name)?;
                 if n > 4 {

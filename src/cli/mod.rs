@@ -102,6 +102,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             background_data: f.background_data.clone(),
             prior_settings: f.prior_args(),
             frozen_stride: f.frozen_stride,
+            image_gains: f.image_gains,
             registration_passes: f.registration_passes,
         }),
         "render" => Command::Render {
@@ -148,6 +149,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             threads,
             prior_settings: f.prior_args(),
             frozen_stride: f.frozen_stride,
+            image_gains: f.image_gains,
         }),
         "demo" => Command::Demo { out: f.out.clone(), steps: f.steps, size: f.size, seed: f.seed, threads },
         "import" => Command::ImportColmap(crate::data::colmap::ImportOptions {

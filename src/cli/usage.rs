@@ -10,7 +10,7 @@ commands:
          [--background-data BG_DIR] [--beta U,E] [--region-floor S|off] [--focus-share F]
          [--region-vote V,S] [--frozen-stride N] [--exposure-correction on|off]
          [--pose-registration on|off]] [--pose-registration on [--registration-passes N]]
-         [--checkpoint-every N] [--scene-views N]
+         [--image-gains on|off] [--checkpoint-every N] [--scene-views N]
          train a NeRF on DIR's transforms_<split>.json (default split: train); with --background,
          a Residual-NeRF (residual + Mixnet over the frozen background; --mix sum: Residual-NeRF-S),
          by default background-aware (--prior all: start at the background, a change region voted
@@ -20,7 +20,9 @@ commands:
          penalty on unchanged rays, entropy; --prior none: the paper's Residual-NeRF).
          A NeRF with --pose-registration on (for a background whose poses came from a robot
          arm): a first NeRF, every image's pose registered against it, N times (default 1),
-         then the run at the registered poses.
+         then the run at the registered poses. --image-gains on: learn a gain per image and
+         colour channel with the field, for captures whose auto-exposure or white balance moved
+         from shot to shot (renders show the capture's mean appearance; default off).
          Checkpoints go to MODEL with '.ckpt' before the extension (every N steps, and on
          SIGINT/SIGTERM, which then exit 130/143); a finished run removes its checkpoint
   train  --resume CHECKPOINT --data DIR --out MODEL [--split NAME] [--csv FILE] [--threads N]
@@ -37,7 +39,7 @@ commands:
          [--methods dex,finetune,residual-paper,residual,...] [--scene-views N] [--steps N] [--rays N]
          [--log2t N] [--seed S] [--eval-every N] [--m M | --m-raw S] [--m-sweep M,M,...] [--threads N]
          [--beta U,E] [--region-floor S|off] [--focus-share F] [--region-vote V,S] [--frozen-stride N]
-         [--exposure-correction on|off] [--pose-registration on|off]
+         [--exposure-correction on|off] [--pose-registration on|off] [--image-gains on|off]
          (--m-sweep: also score the final models at these σ thresholds, default 3,10,20,40;
          --beta: weights of the background-aware methods' β penalty and entropy;
          --region-floor: lift the warm-started residual's raw density in the change region to S;
@@ -50,6 +52,7 @@ commands:
          background's before the change maps and training, default on;
          --pose-registration: correct each scene image's pose so it agrees with the background
          where nothing changed (a robot arm's poses are millimetres off), default on;
+         --image-gains: every run (background included) learns a gain per image, default off;
          methods: dex, finetune, residual, residual-no-warm-start, residual-no-region,
          residual-no-focus, residual-no-reach, residual-no-beta, residual-activated, residual-activated-no-warm-start,
          residual-paper, residual-paper-activated, residual-paper-shared,

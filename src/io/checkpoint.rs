@@ -4,8 +4,11 @@
 //! Beside the model's tensors ([`super::model`]):
 //! - `train.adam.{g}.m`, `train.adam.{g}.v` f32 `[n]`: Adam's moments of parameter group `g`
 //!   (in [`Model::groups`] order, padded MLP layouts included);
+//! - with learned per-image gains ([`TrainConfig::image_gains`]): `train.gains` f32 `[3V]`, the
+//!   log-gains of the V training images (r, g, b per image), and `train.gains.adam.m`,
+//!   `train.gains.adam.v` f32 `[3V]`, their optimiser's moments;
 //! - metadata `checkpoint`: `{"step", "skipped", "seconds", "adam_steps": [..], "fingerprint",
-//!   "train": {the TrainConfig}}`. `fingerprint` hashes the training views (poses, intrinsics,
+//!   "train": {the TrainConfig}}`, plus `"gain_adam_steps"` with learned gains. `fingerprint` hashes the training views (poses, intrinsics,
 //!   pixels): a checkpoint resumes only on the data it was trained on. (A `prune` key, written
 //!   before the training step was fused, is ignored.)
 
@@ -14,6 +17,7 @@ use super::{model_from_bytes, LoadedModel};
 use crate::data::View;
 use crate::field::model::Model;
 use crate::render::{OccupancyConfig, OccupancyGrid};
+use crate::train::gains::ImageGains;
 use crate::train::trainer::{TrainConfig, TrainState};
 use crate::train::{Adam, AdamConfig, LrSchedule};
 use serde_json::{json, Value};
@@ -36,6 +40,8 @@ pub struct Checkpoint {
     pub metadata: std::collections::HashMap<String, String>,
     /// Adam's first and second moments and step count per parameter group.
     pub moments: Vec<(Vec<f32>, Vec<f32>, u32)>,
+    /// The learned per-image gains and their optimiser ([`TrainConfig::image_gains`]).
+    pub gains: Option<ImageGains>,
 }
 
 impl Checkpoint {
@@ -67,7 +73,15 @@ impl Checkpoint {
         }
         drop(groups);
         model.after_step(&mut params); // groups() lent the weights out mutably
-        Ok(TrainState { step: self.step, params, occupancy, adams, skipped: self.skipped, seconds: self.seconds })
+        Ok(TrainState {
+            step: self.step,
+            params,
+            occupancy,
+            adams,
+            skipped: self.skipped,
+            seconds: self.seconds,
+            gains: self.gains,
+        })
     }
 }
 
@@ -120,6 +134,13 @@ pub fn save_checkpoint<M: ModelFile>(
         w.tensor(&format!("train.adam.{g}.m"), vec![m.len()], m).map_err(at)?;
         w.tensor(&format!("train.adam.{g}.v"), vec![v.len()], v).map_err(at)?;
     }
+    if let Some(g) = &state.gains {
+        let (m, v) = g.adam.moments();
+        let a: &[f32] = bytemuck::cast_slice(&g.log_gains);
+        w.tensor("train.gains", vec![a.len()], a).map_err(at)?;
+        w.tensor("train.gains.adam.m", vec![m.len()], m).map_err(at)?;
+        w.tensor("train.gains.adam.v", vec![v.len()], v).map_err(at)?;
+    }
     if let Some(f) = &config.focus {
         // (view, pixel) pairs as f32: exact below 2^24, which the loader checks.
         let flat = |list: &[(u32, u32)]| -> Vec<f32> { list.iter().flat_map(|&(v, p)| [v as f32, p as f32]).collect() };
@@ -131,7 +152,7 @@ pub fn save_checkpoint<M: ModelFile>(
         }
         w.meta("train_focus_share", &f.share.to_string());
     }
-    let meta = json!({
+    let mut meta = json!({
         "step": state.step,
         "skipped": state.skipped,
         "seconds": state.seconds,
@@ -139,6 +160,9 @@ pub fn save_checkpoint<M: ModelFile>(
         "fingerprint": format!("{fingerprint:016x}"),
         "train": train_config_json(config),
     });
+    if let Some(g) = &state.gains {
+        meta["gain_adam_steps"] = json!(g.adam.steps());
+    }
     w.meta("checkpoint", &meta.to_string());
     w.write(path)
 }
@@ -221,7 +245,35 @@ fn read_checkpoint(r: &ModelReader, occupancy: OccupancyConfig) -> Result<Checkp
         }
         moments.push((m, v, t));
     }
-    Ok(Checkpoint { step, skipped, seconds, config, fingerprint, moments, metadata: r.metadata().clone() })
+    let gains = match config.image_gains {
+        None => None,
+        Some(prior) => {
+            let t = u32_of("gain_adam_steps")?;
+            let a = flat_tensor(r, "train.gains")?;
+            let (m, v) = (flat_tensor(r, "train.gains.adam.m")?, flat_tensor(r, "train.gains.adam.v")?);
+            if a.len() % 3 != 0 || m.len() != a.len() || v.len() != a.len() {
+                return Err(format!(
+                    "tensors 'train.gains' ({}), 'train.gains.adam.m' ({}) and 'train.gains.adam.v' ({}) must hold \
+                     3 values per image each",
+                    a.len(),
+                    m.len(),
+                    v.len()
+                ));
+            }
+            for (name, x, lo) in
+                [("train.gains", &a, f32::MIN), ("train.gains.adam.m", &m, f32::MIN), ("train.gains.adam.v", &v, 0.0)]
+            {
+                if let Some(i) = x.iter().position(|x| !(x.is_finite() && *x >= lo)) {
+                    return Err(format!("tensor '{name}' holds a non-finite or negative value at {i}"));
+                }
+            }
+            let mut g = ImageGains::new(a.len() / 3, prior);
+            g.log_gains = a.chunks(3).map(|c| [c[0], c[1], c[2]]).collect();
+            g.adam.restore(m, v, t);
+            Some(g)
+        }
+    };
+    Ok(Checkpoint { step, skipped, seconds, config, fingerprint, moments, gains, metadata: r.metadata().clone() })
 }
 
 /// A one-dimensional f32 tensor of any length.
@@ -246,7 +298,7 @@ pub fn train_config_json(c: &TrainConfig) -> Value {
         "background": c.background, "random_background": c.random_background,
         "seed": c.seed, "distortion": c.distortion, "near_gradient_distance": c.near_gradient_distance,
         "beta_unchanged": c.beta.unchanged, "beta_entropy": c.beta.entropy, "beta_entropy_from": c.beta.entropy_from,
-        "frozen_stride": c.frozen_stride,
+        "frozen_stride": c.frozen_stride, "image_gains": c.image_gains,
     })
 }
 
@@ -308,6 +360,11 @@ pub fn parse_train_config(v: &Value, occupancy: OccupancyConfig) -> Result<Train
             None => 1,
             Some(_) => uint(v, "frozen_stride", 1, 64)? as u32,
         },
+        // Added later: absent or null means off.
+        image_gains: match v.get("image_gains") {
+            None | Some(Value::Null) => None,
+            Some(_) => Some(real(v, "image_gains", 0.0, 1e6)?),
+        },
     })
 }
 
@@ -316,19 +373,26 @@ mod tests {
     use super::*;
 
     #[test]
-    fn the_train_config_survives_its_json_with_the_beta_weights() {
+    fn the_train_config_survives_its_json_with_the_beta_weights_and_gains() {
         let mut c = TrainConfig::with_steps(300);
         c.beta = crate::train::beta::BetaRegulariser { unchanged: 0.25, entropy: 0.5, entropy_from: 0.75 };
         c.seed = 7;
+        c.image_gains = Some(crate::train::trainer::GAIN_PRIOR);
         let back = parse_train_config(&train_config_json(&c), c.occupancy.clone()).unwrap();
         assert_eq!(back.beta, c.beta);
+        assert_eq!(back.image_gains, c.image_gains);
         assert_eq!((back.steps, back.seed, back.schedule), (c.steps, c.seed, c.schedule.clone()));
-        // A checkpoint written before the β weights existed reads them as off.
+        // A checkpoint written before the β weights and the gains existed reads them as off.
         let mut old = train_config_json(&c);
-        for k in ["beta_unchanged", "beta_entropy", "beta_entropy_from"] {
+        for k in ["beta_unchanged", "beta_entropy", "beta_entropy_from", "image_gains"] {
             old.as_object_mut().unwrap().remove(k);
         }
         let back = parse_train_config(&old, c.occupancy.clone()).unwrap();
         assert_eq!(back.beta, Default::default());
+        assert_eq!(back.image_gains, None);
+        // A negative prior weight is refused.
+        let mut bad = train_config_json(&c);
+        bad["image_gains"] = json!(-1.0);
+        assert!(parse_train_config(&bad, c.occupancy.clone()).unwrap_err().contains("image_gains"));
     }
 }

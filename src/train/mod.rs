@@ -4,6 +4,7 @@
 pub mod adam;
 pub mod beta;
 pub mod field_fit;
+pub mod gains;
 pub mod lift;
 pub mod prior;
 pub mod register;

@@ -6,6 +6,7 @@
 //! reduction, Adam, the occupancy refresh) is [`super::trainer`].
 
 use super::beta::beta_terms;
+use super::gains::gained_error;
 use super::trainer::TrainConfig;
 use crate::field::model::Model;
 use crate::render::distortion::distortion_backward;
@@ -31,6 +32,8 @@ pub(super) struct StepRays {
     pub(super) backgrounds: Vec<[f32; 3]>,
     /// Whether each ray's pixel is known unchanged (the β penalty's rays).
     pub(super) unchanged: Vec<bool>,
+    /// Each ray's training image.
+    pub(super) view: Vec<u32>,
 }
 
 /// Marched samples a chunk of the fused step holds at least (it takes whole rays, so it ends
@@ -60,6 +63,8 @@ pub(super) struct Worker<C> {
     pub(super) loss: f64,
     pub(super) n_marched: usize,
     pub(super) n_kept: usize,
+    /// This step's gradient of each training image's log-gain (empty without learned gains).
+    pub(super) d_gain: Vec<[f32; 3]>,
 }
 
 impl<C: Default> Default for Worker<C> {
@@ -79,6 +84,7 @@ impl<C: Default> Default for Worker<C> {
             loss: 0.0,
             n_marched: 0,
             n_kept: 0,
+            d_gain: Vec::new(),
         }
     }
 }
@@ -92,6 +98,8 @@ pub(super) struct StepInputs<'a, M: Model> {
     pub(super) cfg: &'a TrainConfig,
     /// This step's β entropy weight (0 before [`BetaRegulariser::entropy_from`]).
     pub(super) entropy: f32,
+    /// Each training image's gain (empty: images taken as they are; [`crate::train::gains`]).
+    pub(super) gains: &'a [[f32; 3]],
 }
 
 impl<C> Worker<C> {
@@ -104,6 +112,8 @@ impl<C> Worker<C> {
         slot: &mut M::Slot,
     ) {
         (self.loss, self.n_marched, self.n_kept) = (0.0, 0, 0);
+        self.d_gain.clear();
+        self.d_gain.resize(x.gains.len(), [0.0; 3]);
         x.model.begin_slot(slot);
         self.begin_chunk();
         let mut first = range.start;
@@ -208,10 +218,16 @@ impl<C> Worker<C> {
             let r = s0 as usize..(s0 + count) as usize;
             let (sigma, delta, t) = (&self.sigma[r.clone()], &m.delta[r.clone()], &m.t[r.clone()]);
             let c = composite_ray(sigma, delta, t, &self.rgb[r.clone()], rays.backgrounds[ray]);
-            let err: [f32; 3] = std::array::from_fn(|i| c.rgb[i] - rays.targets[ray][i]);
+            let (err, d_colour) = match x.gains.get(rays.view[ray] as usize) {
+                Some(&g) => gained_error(c.rgb, rays.targets[ray], g, scale, &mut self.d_gain[rays.view[ray] as usize]),
+                None => {
+                    let err: [f32; 3] = std::array::from_fn(|i| c.rgb[i] - rays.targets[ray][i]);
+                    (err, err.map(|e| e * scale))
+                }
+            };
             self.loss += err.iter().map(|e| (e * e) as f64).sum::<f64>();
             let (d_s, d_c) = (&mut self.d_sigma[r.clone()], &mut self.d_rgb[r.clone()]);
-            composite_ray_backward(sigma, delta, &self.rgb[r.clone()], &c, err.map(|e| e * scale), d_s, d_c);
+            composite_ray_backward(sigma, delta, &self.rgb[r.clone()], &c, d_colour, d_s, d_c);
             if cfg.distortion > 0.0 {
                 let weight = cfg.distortion / cfg.rays_per_step as f32;
                 distortion_backward(sigma, delta, t, weight, d_s, &mut self.scratch);

@@ -34,6 +34,8 @@ use crate::rng::Rng;
 use crate::simd::Isa;
 use crate::slots::{slot_range, SLOTS};
 use crate::train::beta::BetaRegulariser;
+use crate::train::gains::ImageGains;
+pub use crate::train::gains::GAIN_PRIOR;
 use crate::train::{Adam, AdamConfig, LrSchedule};
 use rayon::prelude::*;
 use std::time::Instant;
@@ -80,6 +82,11 @@ pub struct TrainConfig {
     /// region; [`OccupancyGrid::march_segment`]). 1: every step. Models without pinned cells
     /// sample every step whatever this says. Defaults to [`FROZEN_STRIDE`].
     pub frozen_stride: u32,
+    /// `Some(λ)`: learn a gain per training image and colour channel with the field, with an
+    /// identity prior of weight λ ([`crate::train::gains`]; [`GAIN_PRIOR`] is the usual λ), for
+    /// captures whose exposure or white balance moves from shot to shot. `None`: every image
+    /// is taken as it is. Defaults to `None`.
+    pub image_gains: Option<f32>,
 }
 
 /// A share of each step's rays drawn uniformly from a fixed list of pixels.
@@ -139,6 +146,7 @@ impl TrainConfig {
             focus: None,
             beta: BetaRegulariser::default(),
             frozen_stride: FROZEN_STRIDE,
+            image_gains: None,
         }
     }
 }
@@ -282,6 +290,8 @@ pub struct TrainState<P> {
     pub skipped: u32,
     /// Seconds spent training so far (informational; not part of the bits).
     pub seconds: f64,
+    /// The training images' learned gains, when [`TrainConfig::image_gains`] is on.
+    pub gains: Option<ImageGains>,
 }
 
 /// A training run, one [`Trainer::step`] at a time: the caller decides between steps whether
@@ -331,7 +341,8 @@ impl<'a, M: Model> Trainer<'a, M> {
             .map(|g| Adam::new(g.master.len(), AdamConfig { l2: g.l2, ..Default::default() }))
             .collect();
         model.after_step(&mut params);
-        let state = TrainState { step: 0, params, occupancy, adams, skipped: 0, seconds: 0.0 };
+        let gains = cfg.image_gains.map(|prior| ImageGains::new(views.len(), prior));
+        let state = TrainState { step: 0, params, occupancy, adams, skipped: 0, seconds: 0.0, gains };
         Self::from_state(isa, model, views, cfg, state).expect("a fresh state fits its model")
     }
 
@@ -353,6 +364,15 @@ impl<'a, M: Model> Trainer<'a, M> {
         let saved: Vec<usize> = state.adams.iter().map(|a| a.moments().0.len()).collect();
         if sizes != saved {
             return Err(format!("optimiser state sizes {saved:?} do not fit the model's parameter groups {sizes:?}"));
+        }
+        match (&state.gains, cfg.image_gains) {
+            (Some(g), Some(_)) if g.log_gains.len() != views.len() => {
+                return Err(format!("state has gains for {} images, the run has {}", g.log_gains.len(), views.len()))
+            }
+            (Some(_), None) | (None, Some(_)) => {
+                return Err("state and settings disagree on learning per-image gains".into())
+            }
+            _ => {}
         }
         if state.step > cfg.steps {
             return Err(format!("state is at step {}, past the run's {} steps", state.step, cfg.steps));
@@ -463,6 +483,7 @@ impl<'a, M: Model> Trainer<'a, M> {
         rays.targets.clear();
         rays.backgrounds.clear();
         rays.unchanged.clear();
+        rays.view.clear();
         let focused = match &cfg.focus {
             Some(f) if !f.pixels.is_empty() => (f.share.clamp(0.0, 1.0) * cfg.rays_per_step as f32).round() as usize,
             _ => 0,
@@ -479,6 +500,7 @@ impl<'a, M: Model> Trainer<'a, M> {
                 }
             };
             let v = &views[vi as usize];
+            rays.view.push(vi);
             rays.unchanged.push(changed.get(vi as usize).is_some_and(|b| b[p as usize / 64] >> (p % 64) & 1 == 0));
             let w = v.intrinsics.width;
             rays.rays.push(pixel_ray(&v.intrinsics, &v.pose, p % w, p / w));
@@ -494,7 +516,8 @@ impl<'a, M: Model> Trainer<'a, M> {
             true => cfg.beta.entropy,
             false => 0.0,
         };
-        let inputs = StepInputs { isa, model, params: &*params, occupancy: &*occupancy, cfg, entropy };
+        let gains = state.gains.as_ref().map(ImageGains::gains).unwrap_or_default();
+        let inputs = StepInputs { isa, model, params: &*params, occupancy: &*occupancy, cfg, entropy, gains: &gains };
         let rays = &*rays;
         workers
             .par_iter_mut()
@@ -512,12 +535,20 @@ impl<'a, M: Model> Trainer<'a, M> {
         //    scattered from the gathered feature gradients. A non-finite loss or gradient skips
         //    the step (the parameters, moments and step count of Adam stay as they were).
         model.finish_step(isa, slots, grads);
-        let finite = loss.is_finite() && model.groups(params, grads).iter().all(|g| all_finite(g.grad));
+        let gain_grads: Vec<[f32; 3]> = (0..gains.len())
+            .map(|v| workers.iter().fold([0.0; 3], |acc, w| std::array::from_fn(|c| acc[c] + w.d_gain[v][c])))
+            .collect();
+        let finite = loss.is_finite()
+            && model.groups(params, grads).iter().all(|g| all_finite(g.grad))
+            && gain_grads.iter().flatten().all(|g| g.is_finite());
         if finite {
-            // 4. Adam on every parameter group.
+            // 4. Adam on every parameter group, and on the images' gains.
             let lr = cfg.schedule.lr(step);
             for (adam, g) in state.adams.iter_mut().zip(model.groups(params, grads)) {
                 adam.step(isa, lr, g.master, g.grad, g.mirror);
+            }
+            if let Some(g) = &mut state.gains {
+                g.step(isa, lr, &gain_grads);
             }
             *bad_in_a_row = 0;
         } else {
