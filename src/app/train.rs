@@ -391,6 +391,9 @@ fn describe_run(cfg: &TrainConfig, log2t: u32, isa: Isa) {
         cfg.seed,
         rayon::current_num_threads()
     );
+    if let Some(prior) = cfg.image_gains {
+        eprintln!("rnerf train: learning a gain per image and colour channel (identity prior {prior})");
+    }
 }
 
 /// `--resume`: the model, optimiser state and settings from the checkpoint; the data must be
@@ -540,6 +543,17 @@ fn drive<M: ModelFile>(
     }
     let state = trainer.into_state();
     let mut extra = extra.to_vec();
+    if let Some(g) = &state.gains {
+        // The learned gains: in the log as a range per channel, in the model as JSON rows.
+        let gains = g.gains();
+        let range = |c: usize| gains.iter().fold((f32::MAX, f32::MIN), |(lo, hi), g| (lo.min(g[c]), hi.max(g[c])));
+        let [r, gr, b] = [range(0), range(1), range(2)];
+        eprintln!(
+            "rnerf train: learned image gains r {:.3}..{:.3}, g {:.3}..{:.3}, b {:.3}..{:.3} (geometric mean 1)",
+            r.0, r.1, gr.0, gr.1, b.0, b.1
+        );
+        extra.push(("train_image_gains_learned", serde_json::to_string(&gains).expect("finite gains")));
+    }
     extra.push(("train_seconds", format!("{:.1}", state.seconds)));
     extra.push(("train_skipped_steps", state.skipped.to_string()));
     save_model(&a.out, model, &state.params, &state.occupancy, &extra)?;

@@ -19,8 +19,9 @@
 //! Determinism: ray sampling draws from `Rng::stream(seed, step)`; a slot's rays, its chunks
 //! and the order it accumulates in depend only on the data; slots reduce in slot order —
 //! same seed, same bits on any thread count. All that carries over between steps is the
-//! [`TrainState`] (parameters, occupancy grid, Adam moments, step), so a run resumed from a
-//! saved state continues bit-exactly.
+//! [`TrainState`] (parameters, occupancy grid, Adam moments, step, and the images' learned
+//! gains when [`TrainConfig::image_gains`] is on, whose gradients the slots also reduce in slot
+//! order), so a run resumed from a saved state continues bit-exactly.
 
 pub use super::step::{scale_near_gradients, CHUNK_SAMPLES, RAY_SEGMENT};
 use super::step::{StepInputs, StepRays, Worker};
