@@ -216,3 +216,36 @@ fn a_box_the_rays_never_cross_stops_with_an_error_naming_it() {
     assert!(matches!(err, TrainError::NoLiveSamples { .. }), "{msg}");
     assert!(msg.contains("scene box") && msg.contains("[100.0, 100.0, 100.0]") && !msg.contains('\n'), "{msg}");
 }
+
+/// A checkpoint whose learned gains do not fit is refused with a one-line error: gains for
+/// other images than the run's, and settings that learn gains without the gains' tensors.
+#[test]
+fn a_checkpoint_whose_gains_do_not_fit_is_refused() {
+    let scene = workspace::workspace(16, 8, 0.0, false);
+    let field = NerfField::new(field_config(scene.aabb));
+    let dir = scratch("gains");
+    let mut cfg = train_config(20);
+    cfg.image_gains = Some(GAIN_PRIOR);
+    let mut t = Trainer::new(Isa::detect(), &field, scene.aabb, &scene.views, &cfg);
+    t.step().unwrap();
+    let unpack = |m: LoadedModel| match m {
+        LoadedModel::Nerf(n) => (n.params, n.occupancy),
+        LoadedModel::Residual(_) => panic!("saved a NeRF"),
+    };
+    // Gains of 8 images, resumed on 5 of them.
+    let path = dir.join("eight.ckpt.safetensors");
+    save_checkpoint(&path, &field, t.state(), &cfg, views_fingerprint(&scene.views), &[]).unwrap();
+    let (loaded, checkpoint) = load_checkpoint(&path).unwrap();
+    let (params, occupancy) = unpack(loaded);
+    let cfg_back = checkpoint.config.clone();
+    let state = checkpoint.into_state(&field, params, occupancy).unwrap();
+    let err = Trainer::from_state(Isa::detect(), &field, &scene.views[..5], &cfg_back, state).err().unwrap();
+    assert!(err.contains("gains for 8 images") && err.contains("has 5") && !err.contains('\n'), "{err}");
+    // Settings that learn gains, saved from a state without them: the tensors are missing.
+    let mut state = t.state().clone();
+    state.gains = None;
+    let path = dir.join("none.ckpt.safetensors");
+    save_checkpoint(&path, &field, &state, &cfg, views_fingerprint(&scene.views), &[]).unwrap();
+    let err = load_checkpoint(&path).err().unwrap();
+    assert!(err.contains("none.ckpt.safetensors") && err.contains("gain_adam_steps") && !err.contains('\n'), "{err}");
+}
