@@ -4,6 +4,8 @@
 //! Without learned gains every estimate is 1 and the error equals the spread, so the bound can
 //! fail.
 
+mod common;
+
 use residual_nerf::app::demo_config;
 use residual_nerf::data::synth::SynthScene;
 use residual_nerf::data::workspace::{self, Capture, Glass};
@@ -16,25 +18,9 @@ const VIEWS: usize = 64;
 const STEPS: u32 = 300;
 const SPREAD: f32 = 0.15;
 
-/// Log of each view's true gain per channel, from the pixels the gain did not saturate:
-/// `ln(Σ jittered / Σ plain)`.
+/// Log of each view's true gain per channel ([`common::observed_gain`]).
 fn true_log_gains(plain: &SynthScene, jittered: &SynthScene) -> Vec<[f64; 3]> {
-    plain
-        .views
-        .iter()
-        .zip(&jittered.views)
-        .map(|(p, j)| {
-            std::array::from_fn(|c| {
-                let (mut sp, mut sj) = (0.0f64, 0.0f64);
-                for (a, b) in p.rgb.iter().zip(&j.rgb) {
-                    if a[c] > 0.02 && a[c] < 0.8 && b[c] < 0.98 {
-                        (sp, sj) = (sp + a[c] as f64, sj + b[c] as f64);
-                    }
-                }
-                (sj / sp).ln()
-            })
-        })
-        .collect()
+    plain.views.iter().zip(&jittered.views).map(|(p, j)| common::observed_gain(&p.rgb, &j.rgb).map(f64::ln)).collect()
 }
 
 /// Centres each channel's log-gains on 0 (the trainer's gauge).

@@ -2,6 +2,8 @@
 //! scene sets agree everywhere else, and a written dataset loads back through the ordinary
 //! loader with the same poses, colours (to 8 bits), depth, masks and crops.
 
+mod common;
+
 use residual_nerf::data::workspace::{self, Glass, GLASS};
 use residual_nerf::data::{Dataset, LoadOptions};
 use std::path::Path;
@@ -124,15 +126,7 @@ fn exposure_jitter_gives_each_view_its_own_gain() {
     let mut gains = Vec::new();
     for v in 0..4 {
         assert_same_depth(&plain.depth[v], &shot.depth[v]);
-        let g: [f32; 3] = std::array::from_fn(|k| {
-            let (mut num, mut den) = (0.0, 0.0);
-            for (p, s) in plain.views[v].rgb.iter().zip(&shot.views[v].rgb) {
-                if p[k] < 0.8 && s[k] < 1.0 {
-                    (num, den) = (num + s[k], den + p[k]);
-                }
-            }
-            num / den
-        });
+        let g = common::observed_gain(&plain.views[v].rgb, &shot.views[v].rgb).map(|g| g as f32);
         assert!(g.iter().all(|g| (0.85 - 1e-4..=1.15 + 1e-4).contains(g)), "view {v}: gain {g:?}");
         gains.push(g);
     }

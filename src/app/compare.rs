@@ -99,9 +99,7 @@ pub(super) fn run(a: &crate::cli::CompareArgs) -> Result<(), String> {
     std::fs::create_dir_all(&a.out).map_err(|e| format!("{}: --out: cannot create: {e}", a.out.display()))?;
     let (grid, mut train) = trainer_settings(a.steps, a.rays, a.log2t, a.seed, any_alpha);
     train.frozen_stride = a.frozen_stride.unwrap_or(train.frozen_stride);
-    if a.image_gains == Some(true) {
-        train.image_gains = Some(crate::train::trainer::GAIN_PRIOR);
-    }
+    train.image_gains = a.image_gains;
     let cfg = CompareConfig {
         eval_every: a.eval_every.unwrap_or((train.steps / 20).max(1)),
         train,

@@ -141,9 +141,7 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
     cfg.near_gradient_distance = a.near_grad.unwrap_or(cfg.near_gradient_distance);
     cfg.random_background &= a.random_bg.unwrap_or(true);
     cfg.frozen_stride = a.frozen_stride.unwrap_or(cfg.frozen_stride);
-    if a.image_gains == Some(true) {
-        cfg.image_gains = Some(crate::train::trainer::GAIN_PRIOR);
-    }
+    cfg.image_gains = a.image_gains;
     let isa = Isa::detect();
     describe_run(&cfg, field.grid.log2_table_size, isa);
     match (background, &a.background) {

@@ -137,8 +137,9 @@ pub struct TrainArgs {
     /// Lattice steps per training sample outside a residual model's change region
     /// (`--frozen-stride N`).
     pub frozen_stride: Option<u32>,
-    /// Learn a gain per training image with the field (`--image-gains on|off`; default off).
-    pub image_gains: Option<bool>,
+    /// The identity prior's weight when a gain per training image is learned with the field
+    /// (`--image-gains on`); `None`: off, the default.
+    pub image_gains: Option<f32>,
     /// Registration passes of a NeRF trained with `--pose-registration on`
     /// (`--registration-passes N`; default 1).
     pub registration_passes: Option<u32>,
@@ -183,8 +184,9 @@ pub struct CompareArgs {
     /// Lattice steps per training sample outside a residual model's change region
     /// (`--frozen-stride N`).
     pub frozen_stride: Option<u32>,
-    /// Learn a gain per training image with the field (`--image-gains on|off`; default off).
-    pub image_gains: Option<bool>,
+    /// The identity prior's weight when a gain per training image is learned with the field
+    /// (`--image-gains on`); `None`: off, the default.
+    pub image_gains: Option<f32>,
 }
 
 /// The background prior's settings `rnerf train` and `rnerf compare` share; each `None` keeps

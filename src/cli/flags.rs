@@ -119,7 +119,8 @@ pub(super) struct Flags {
     pub(super) pose_registration: Option<bool>,
     pub(super) registration_passes: Option<u32>,
     pub(super) frozen_stride: Option<u32>,
-    pub(super) image_gains: Option<bool>,
+    /// `--image-gains on`: the identity prior's weight; off or not given: `None`.
+    pub(super) image_gains: Option<f32>,
     /// Flags given, in order.
     pub(super) given: Vec<String>,
     pub(super) images: Option<PathBuf>,
@@ -196,7 +197,10 @@ impl Flags {
             "resume" => self.resume = Some(path(p, name)?),
             "exposure-correction" => self.exposure_correction = Some(choice(p, name, &["on", "off"])? == "on"),
             "pose-registration" => self.pose_registration = Some(choice(p, name, &["on", "off"])? == "on"),
-            "image-gains" => self.image_gains = Some(choice(p, name, &["on", "off"])? == "on"),
+            "image-gains" => {
+                self.image_gains =
+                    (choice(p, name, &["on", "off"])? == "on").then_some(crate::train::trainer::GAIN_PRIOR)
+            }
             "registration-passes" => {
                 let n: u32 = positive(p, name)?;
                 if n > 4 {

@@ -177,3 +177,17 @@ pub fn kink_is_clear(isa: residual_nerf::simd::Isa, margin: f64) -> bool {
 pub fn best_fp32_isa() -> residual_nerf::simd::Isa {
     residual_nerf::simd::Isa::all().into_iter().rfind(|i| i.level().mlp_is_fp32()).expect("scalar is always there")
 }
+
+/// The gain per channel that turned `plain` into `shot` (the same view rendered at two
+/// exposures): `Σ shot / Σ plain` over the pixels neither saturates.
+pub fn observed_gain(plain: &[[f32; 3]], shot: &[[f32; 3]]) -> [f64; 3] {
+    std::array::from_fn(|c| {
+        let (mut num, mut den) = (0.0f64, 0.0f64);
+        for (p, s) in plain.iter().zip(shot) {
+            if p[c] < 0.8 && s[c] < 0.98 {
+                (num, den) = (num + s[c] as f64, den + p[c] as f64);
+            }
+        }
+        num / den
+    })
+}
