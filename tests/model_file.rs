@@ -6,6 +6,7 @@ use residual_nerf::data::synth;
 use residual_nerf::encoding::HashGridConfig;
 use residual_nerf::error::ErrorKind;
 use residual_nerf::field::{Nerf, NerfConfig};
+use residual_nerf::geometry::ChangeRegion;
 use residual_nerf::io::model::{ModelReader, ModelWriter};
 use residual_nerf::io::{load_nerf, nerf_from_bytes, save_nerf};
 use residual_nerf::render::{DensityThreshold, OccupancyConfig};
@@ -181,5 +182,27 @@ fn residual_model_round_trips_with_its_background_embedded() {
         let e = load_nerf(&path).unwrap_err();
         assert_eq!(e.kind(), ErrorKind::Unsupported);
         assert!(e.message().contains("residual"), "{e}");
+        // With a change region: pinned, and frozen outside it when the run froze it (a
+        // warm-started run), so a resumed run refreshes the same cells.
+        if kind == MixKind::Sum {
+            continue;
+        }
+        let occ = bg.occupancy.config();
+        let region = ChangeRegion::from_cells(scene.aabb, occ.resolution, &[0, 9, 100]).unwrap();
+        for freeze in [false, true] {
+            let mut m = model.clone();
+            m.field = m.field.with_region(region.clone());
+            m.occupancy.pin(&region);
+            if freeze {
+                m.occupancy.freeze_outside_pins();
+            }
+            save_residual(&path, &m, &[]).unwrap();
+            let LoadedModel::Residual(back) = load_model(&path).unwrap() else { panic!("loaded as a plain NeRF") };
+            assert_eq!(back.occupancy.is_frozen_outside_pins(), freeze, "{kind:?}: the freeze did not round-trip");
+            assert!(
+                back.occupancy.is_occupied(region.cell_centre(9)),
+                "{kind:?}: the region is not pinned after loading"
+            );
+        }
     }
 }

@@ -268,3 +268,44 @@ proptest! {
         prop_assert!((transmittance(&d) - transmittance(&fine_d)).abs() < 1e-4);
     }
 }
+
+/// A grid frozen outside its pinned cells (a warm-started residual model's: outside the change
+/// region the field is the background, whose grid it holds) refreshes the pinned cells only:
+/// an update evaluates exactly those cells, no bit changes, the other cells keep their values
+/// and the pinned cells' values follow the field. Unfrozen, the same update re-marks the grid.
+#[test]
+fn a_grid_frozen_outside_its_pins_refreshes_the_pinned_cells_only() {
+    let r = 32u32;
+    // A slab of cells x < 3 (x is the fastest index), away from the sphere.
+    let slab: Vec<u32> = (0..r * r * r).filter(|i| i % r < 3).collect();
+    let in_slab = |p: &Vec3| p.x * (r as f32) < 3.0;
+    let mut g = sphere_grid();
+    g.pin(&ChangeRegion::from_cells(unit_box(), r, &slab).unwrap());
+    let mut unfrozen = g.clone();
+    g.freeze_outside_pins();
+    assert!(g.is_frozen_outside_pins() && !unfrozen.is_frozen_outside_pins());
+    let centres: Vec<Vec3> = (0..r * r * r)
+        .map(|i| (Vec3::new((i % r) as f32, (i / r % r) as f32, (i / (r * r)) as f32) + 0.5) / r as f32)
+        .collect();
+    let bits_before: Vec<bool> = centres.iter().map(|&p| g.is_occupied(p)).collect();
+    let values_before = g.values().to_vec();
+    // A field dense everywhere, in warm-up (step 0), when an unfrozen grid evaluates and then
+    // marks every cell.
+    let (mut evaluated, mut outside) = (0, 0);
+    g.update(0, &mut Rng::new(3), |p, s| {
+        evaluated += p.len();
+        outside += p.iter().filter(|p| !in_slab(p)).count();
+        s.fill(1e3);
+    });
+    assert_eq!((evaluated, outside), (slab.len(), 0), "the update evaluated other cells than the pinned ones");
+    let bits_after: Vec<bool> = centres.iter().map(|&p| g.is_occupied(p)).collect();
+    assert!(bits_after == bits_before, "a frozen grid's bits changed");
+    for (i, (&a, &b)) in g.values().iter().zip(&values_before).enumerate() {
+        match slab.binary_search(&(i as u32)) {
+            Ok(_) => assert_eq!(a, 1e3 * g.step_size(), "pinned cell {i} not refreshed"),
+            Err(_) => assert_eq!(a.to_bits(), b.to_bits(), "frozen cell {i} changed"),
+        }
+    }
+    unfrozen.update(0, &mut Rng::new(3), |_, s| s.fill(1e3));
+    assert_eq!(unfrozen.occupancy(), 1.0);
+}

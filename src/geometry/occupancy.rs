@@ -120,6 +120,8 @@ pub struct OccupancyGrid {
     step_size: f32,
     /// Cells kept occupied whatever their value ([`OccupancyGrid::pin`]).
     pinned: Option<Vec<u64>>,
+    /// Whether the cells outside the pinned ones are frozen ([`OccupancyGrid::freeze_outside_pins`]).
+    frozen: bool,
 }
 
 impl OccupancyGrid {
@@ -142,6 +144,7 @@ impl OccupancyGrid {
             step_size,
             config,
             pinned: None,
+            frozen: false,
         };
         g.rebuild_blocks();
         g
@@ -185,7 +188,9 @@ impl OccupancyGrid {
     pub fn update(&mut self, step: u32, rng: &mut Rng, mut density: impl FnMut(&[Vec3], &mut [f32])) {
         let n = self.values.len();
         let r = self.config.resolution;
-        let cells: Vec<u32> = if step < self.config.warmup_steps {
+        let cells: Vec<u32> = if let (true, Some(p)) = (self.frozen, &self.pinned) {
+            (0..n as u32).filter(|&i| p[i as usize / 64] >> (i % 64) & 1 == 1).collect()
+        } else if step < self.config.warmup_steps {
             (0..n as u32).collect()
         } else {
             let occupied: Vec<u32> =
@@ -214,11 +219,38 @@ impl OccupancyGrid {
                 fresh[i as usize] = fresh[i as usize].max(v);
             }
         }
-        for (old, new) in self.values.iter_mut().zip(&fresh) {
+        let refresh = |old: &mut f32, new: f32| {
             let decayed = if *old == f32::MAX { 0.0 } else { *old * self.config.decay };
-            *old = if new.is_finite() { decayed.max(*new) } else { decayed };
+            *old = if new.is_finite() { decayed.max(new) } else { decayed };
+        };
+        if self.frozen {
+            // The pinned cells' values only (what `keep_at_least` reads); every bit stays: the
+            // frozen cells keep theirs, the pinned ones are set.
+            for &i in &cells {
+                refresh(&mut self.values[i as usize], fresh[i as usize]);
+            }
+            return;
+        }
+        for (old, &new) in self.values.iter_mut().zip(&fresh) {
+            refresh(old, new);
         }
         self.rebuild_bits();
+    }
+
+    /// Freezes every cell outside the pinned ones: [`OccupancyGrid::update`] then refreshes the
+    /// pinned cells' values only and leaves every bit as it is. For a grid taken from a frozen
+    /// background whose field changes only inside the pinned region (a warm-started residual
+    /// model: outside its change region the mixed field is the background bit for bit, so the
+    /// background's grid already holds its occupancy there). An update then costs the region's
+    /// cells, not the room's (docs/DECISIONS.md, "The occupancy refresh of a residual model").
+    pub fn freeze_outside_pins(&mut self) {
+        assert!(self.pinned.is_some(), "occupancy: only a grid with pinned cells can freeze the rest");
+        self.frozen = true;
+    }
+
+    /// Whether the cells outside the pinned ones are frozen.
+    pub fn is_frozen_outside_pins(&self) -> bool {
+        self.frozen
     }
 
     /// Keeps `region`'s cells occupied from now on, whatever the field's density there (a

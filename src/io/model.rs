@@ -341,6 +341,9 @@ impl ModelFile for ResidualField {
             w.meta("region_resolution", &region.resolution().to_string());
             let cells: Vec<f32> = region.cells().iter().map(|&c| c as f32).collect();
             w.tensor("region.cells", vec![cells.len()], &cells)?;
+            if occupancy.is_frozen_outside_pins() {
+                w.meta("occupancy_frozen_outside_region", "true");
+            }
         }
         Ok(w)
     }
@@ -459,6 +462,9 @@ fn residual_from(r: &ModelReader<'_>, background: Nerf, res: Nerf, kind: MixKind
             let region = read_region(r, text, &field)?;
             if region.resolution() == occupancy.config().resolution {
                 occupancy.pin(&region);
+                if r.meta("occupancy_frozen_outside_region").ok() == Some("true") {
+                    occupancy.freeze_outside_pins();
+                }
             }
             field.with_region(region)
         }

@@ -651,6 +651,10 @@ pub fn residual_start(
     if let Some(region) = field.region() {
         if occupancy.config().resolution == region.resolution() {
             occupancy.pin(region);
+            // Outside the region the field is the background, whose grid this is.
+            if hints.warm_start {
+                occupancy.freeze_outside_pins();
+            }
         }
     }
     let share = if hints.focus { pcfg.change_share } else { 0.0 };

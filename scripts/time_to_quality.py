@@ -1,0 +1,51 @@
+#!/usr/bin/env python3
+"""Time to quality from `rnerf compare --eval-every N` curves (curves.csv files).
+
+For each scene: the baseline's final object MAE (default method `dex`), the first curve point
+where the method (default `residual`) reaches it, in steps and training seconds, and that as a
+share of the baseline's training seconds; then the first point where the method is within 5% of
+its own final object MAE.
+
+    scripts/time_to_quality.py OUT_SCENE/curves.csv [...] [--method residual] [--baseline dex]
+"""
+import csv
+import sys
+
+
+def main(argv):
+    method, baseline, files = "residual", "dex", []
+    it = iter(argv)
+    for a in it:
+        if a == "--method":
+            method = next(it)
+        elif a == "--baseline":
+            baseline = next(it)
+        else:
+            files.append(a)
+    if not files:
+        sys.exit(__doc__)
+    rows = []
+    for f in files:
+        with open(f, newline="") as fh:
+            rows += list(csv.DictReader(fh))
+    scenes = sorted({r["scene"] for r in rows}, key=[r["scene"] for r in rows].index)
+    print(f"| scene | {baseline} final object MAE (m), its seconds | {method} reaches it at step (s), share of {baseline}'s seconds | {method} final object MAE (m) | within 5% of it at step (s) |")
+    print("|---|---|---|---|---|")
+    for s in scenes:
+        curve = lambda m: sorted(
+            ((int(r["step"]), float(r["seconds"]), float(r["object_mae"])) for r in rows if r["scene"] == s and r["method"] == m)
+        )
+        b, m = curve(baseline), curve(method)
+        if not b or not m:
+            print(f"| {s} | missing curves for {baseline} or {method} |")
+            continue
+        b_final, b_secs = b[-1][2], b[-1][1]
+        reach = next(((st, sec) for st, sec, mae in m if mae <= b_final), None)
+        m_final = m[-1][2]
+        near = next(((st, sec) for st, sec, mae in m if mae <= 1.05 * m_final), None)
+        reach_text = f"{reach[0]} ({reach[1]:.1f} s), {reach[1] / b_secs:.2f}×" if reach else "never"
+        print(f"| {s} | {b_final:.4f}, {b_secs:.1f} s | {reach_text} | {m_final:.4f} | {near[0]} ({near[1]:.1f} s) |")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
