@@ -242,7 +242,7 @@ impl OccupancyGrid {
     /// background whose field changes only inside the pinned region (a warm-started residual
     /// model: outside its change region the mixed field is the background bit for bit, so the
     /// background's grid already holds its occupancy there). An update then costs the region's
-    /// cells, not the room's (docs/DECISIONS.md, "The occupancy refresh of a residual model").
+    /// cells, not the room's (docs/DECISIONS.md, "Where a residual step's time goes").
     pub fn freeze_outside_pins(&mut self) {
         assert!(self.pinned.is_some(), "occupancy: only a grid with pinned cells can freeze the rest");
         self.frozen = true;
