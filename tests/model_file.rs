@@ -9,7 +9,8 @@ use residual_nerf::field::{Nerf, NerfConfig};
 use residual_nerf::geometry::ChangeRegion;
 use residual_nerf::io::model::{ModelReader, ModelWriter};
 use residual_nerf::io::{load_nerf, nerf_from_bytes, save_nerf};
-use residual_nerf::render::{DensityThreshold, OccupancyConfig};
+use residual_nerf::render::{DensityThreshold, OccupancyConfig, OccupancyGrid};
+use residual_nerf::rng::Rng;
 use residual_nerf::simd::Isa;
 use residual_nerf::train::trainer::{train_nerf, TrainConfig};
 use std::path::{Path, PathBuf};
@@ -187,10 +188,13 @@ fn residual_model_round_trips_with_its_background_embedded() {
         if kind == MixKind::Sum {
             continue;
         }
-        let occ = bg.occupancy.config();
-        let region = ChangeRegion::from_cells(scene.aabb, occ.resolution, &[0, 9, 100]).unwrap();
+        let region = ChangeRegion::from_cells(scene.aabb, bg.occupancy.config().resolution, &[0, 9, 100]).unwrap();
         for freeze in [false, true] {
             let mut m = model.clone();
+            // An empty grid, so that only the pin makes the region's cells occupied.
+            m.occupancy = OccupancyGrid::new(scene.aabb, bg.occupancy.config().clone());
+            m.occupancy.update(0, &mut Rng::new(1), |_, s| s.fill(0.0));
+            assert_eq!(m.occupancy.occupancy(), 0.0);
             m.field = m.field.with_region(region.clone());
             m.occupancy.pin(&region);
             if freeze {
@@ -200,7 +204,7 @@ fn residual_model_round_trips_with_its_background_embedded() {
             let LoadedModel::Residual(back) = load_model(&path).unwrap() else { panic!("loaded as a plain NeRF") };
             assert_eq!(back.occupancy.is_frozen_outside_pins(), freeze, "{kind:?}: the freeze did not round-trip");
             assert!(
-                back.occupancy.is_occupied(region.cell_centre(9)),
+                region.cells().iter().all(|&c| back.occupancy.is_occupied(region.cell_centre(c as usize))),
                 "{kind:?}: the region is not pinned after loading"
             );
         }
