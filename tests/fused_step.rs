@@ -151,6 +151,9 @@ fn the_residual_chunk_path_matches_the_batch_path() {
         // only; the batch path evaluates them everywhere and masks β. A thin slab along one
         // edge (few rows inside) and half the box.
         if let MixKind::Mixnet(_) = kind {
+            // Colour-only mixing where the background is solid (σ_bg ≥ 1: part of the rows).
+            let solid = f.clone().with_solid_background(1.0);
+            fused_matches_batch(&format!("residual {kind:?} {mixnet:?} colour-only on solid"), &solid, &p, &mut rng);
             for cells in [(0..4).collect::<Vec<u32>>(), (0..32).collect()] {
                 let region = ChangeRegion::from_cells(aabb(), 4, &cells).unwrap();
                 let fr = f.clone().with_region(region);

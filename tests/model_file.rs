@@ -179,6 +179,7 @@ fn residual_model_round_trips_with_its_background_embedded() {
         assert_eq!(back.field.mixnet_encoding(), mixnet);
         assert!(back.params == model.params && back.field.background.params == bg.params);
         assert_eq!(back.occupancy.values(), model.occupancy.values());
+        assert_eq!(back.field.solid_background(), None);
         // A residual file is not a plain NeRF.
         let e = load_nerf(&path).unwrap_err();
         assert_eq!(e.kind(), ErrorKind::Unsupported);
@@ -188,6 +189,12 @@ fn residual_model_round_trips_with_its_background_embedded() {
         if kind == MixKind::Sum {
             continue;
         }
+        // Colour-only mixing where the background is solid keeps its level.
+        let mut m = model.clone();
+        m.field = m.field.with_solid_background(10.0);
+        save_residual(&path, &m, &[]).unwrap();
+        let LoadedModel::Residual(back) = load_model(&path).unwrap() else { panic!("loaded as a plain NeRF") };
+        assert_eq!(back.field.solid_background(), Some(10.0), "{kind:?}: the solid level did not round-trip");
         let region = ChangeRegion::from_cells(scene.aabb, bg.occupancy.config().resolution, &[0, 9, 100]).unwrap();
         for freeze in [false, true] {
             let mut m = model.clone();

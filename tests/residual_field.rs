@@ -49,17 +49,21 @@ fn residual_gradients_match_finite_differences() {
     let isa = common::best_fp32_isa();
     let own =
         MixnetEncoding::Own(HashGridConfig { levels: 2, log2_table_size: 6, base_resolution: 4, finest_resolution: 8 });
-    for (kind, mixnet) in [
-        (MixKind::Mixnet(DensityMix::Activated), own),
-        (MixKind::Mixnet(DensityMix::Raw), own),
-        (MixKind::Mixnet(DensityMix::Activated), MixnetEncoding::Shared),
-        (MixKind::Mixnet(DensityMix::Raw), MixnetEncoding::Shared),
-        (MixKind::Sum, own),
+    // The last two: colour-only mixing where the background is solid, its level the median
+    // background density of the points (half of them mix colour only).
+    for (kind, mixnet, solid) in [
+        (MixKind::Mixnet(DensityMix::Activated), own, false),
+        (MixKind::Mixnet(DensityMix::Raw), own, false),
+        (MixKind::Mixnet(DensityMix::Activated), MixnetEncoding::Shared, false),
+        (MixKind::Mixnet(DensityMix::Raw), MixnetEncoding::Shared, false),
+        (MixKind::Sum, own, false),
+        (MixKind::Mixnet(DensityMix::Raw), own, true),
+        (MixKind::Mixnet(DensityMix::Activated), own, true),
     ] {
         let mut rng = Rng::new(3);
         let bg = background(&mut rng);
         let cfg = ResidualConfig { residual: NerfConfig { grid: grid(), aabb: aabb() }, kind, mixnet };
-        let f = ResidualField::new(bg.clone(), cfg);
+        let mut f = ResidualField::new(bg.clone(), cfg);
         let mut p = f.init_params(&mut rng);
         p.residual.grid.master.iter_mut().for_each(|v| *v = rng.uniform(-1.0, 1.0));
         p.residual.grid.sync_mirror();
@@ -80,6 +84,9 @@ fn residual_gradients_match_finite_differences() {
         let a: Vec<f32> = (0..n).map(|_| rng.uniform(-1.0, 1.0)).collect();
         let b: Vec<[f32; 3]> =
             (0..n).map(|_| [rng.uniform(-1.0, 1.0), rng.uniform(-1.0, 1.0), rng.uniform(-1.0, 1.0)]).collect();
+        if solid {
+            f = f.with_solid_background(median_background_sigma(&bg, &pos));
+        }
 
         let mut ctx = ResidualContext::default();
         let (mut sigma, mut rgb) = (vec![0.0; n], vec![[0.0; 3]; n]);
@@ -164,5 +171,76 @@ fn residual_gradients_match_finite_differences() {
                 1e-3,
             );
         }
+    }
+}
+
+/// The median background σ at `pos`.
+fn median_background_sigma(bg: &Nerf, pos: &[Vec3]) -> f32 {
+    let mut s = vec![0.0; pos.len()];
+    bg.field.density(common::best_fp32_isa(), &bg.params, pos, &mut s, &mut Default::default());
+    s.sort_by(f32::total_cmp);
+    s[s.len() / 2].exp()
+}
+
+/// With colour-only mixing where the background is solid, the mixed density there is the
+/// background's whatever the residual and β are, and the residual's density gets no gradient
+/// from it; the colour still mixes. Elsewhere the density mixes as without it.
+#[test]
+fn colour_only_mixing_keeps_the_solid_backgrounds_density() {
+    let isa = common::best_fp32_isa();
+    for kind in [MixKind::Mixnet(DensityMix::Raw), MixKind::Mixnet(DensityMix::Activated)] {
+        let mut rng = Rng::new(8);
+        let bg = background(&mut rng);
+        let own = MixnetEncoding::Own(HashGridConfig {
+            levels: 2,
+            log2_table_size: 6,
+            base_resolution: 4,
+            finest_resolution: 8,
+        });
+        let cfg = ResidualConfig { residual: NerfConfig { grid: grid(), aabb: aabb() }, kind, mixnet: own };
+        let plain = ResidualField::new(bg.clone(), cfg);
+        let mut p = plain.init_params(&mut rng);
+        p.residual.grid.master.iter_mut().for_each(|v| *v = rng.uniform(-1.0, 1.0));
+        p.residual.grid.sync_mirror();
+        let n = 64;
+        let pos: Vec<Vec3> =
+            (0..n).map(|_| Vec3::new(rng.uniform(-0.9, 0.9), rng.uniform(-0.9, 0.9), rng.uniform(-0.9, 0.9))).collect();
+        let dirs = vec![Vec3::Z; n];
+        let level = median_background_sigma(&bg, &pos);
+        let gated = plain.clone().with_solid_background(level);
+        let mut s_bg = vec![0.0; n];
+        bg.field.density(isa, &bg.params, &pos, &mut s_bg, &mut Default::default());
+        let run = |f: &ResidualField| {
+            let (mut sigma, mut rgb) = (vec![0.0; n], vec![[0.0f32; 3]; n]);
+            let mut ctx = ResidualContext::default();
+            f.forward(isa, &p, &pos, &dirs, &mut sigma, &mut rgb, &mut ctx);
+            let mut g = f.zero_grads();
+            // dL/dσ = 1 at every point: the residual's density gets a gradient only where it mixes.
+            f.backward(isa, &p, &mut ctx, &vec![1.0; n], &vec![[0.0; 3]; n], &mut g, GradientMode::Overwrite);
+            (sigma, rgb, g)
+        };
+        let (sp, cp, _) = run(&plain);
+        let (sg, cg, gg) = run(&gated);
+        let (mut solid, mut air) = (0, 0);
+        for i in 0..n {
+            if s_bg[i].exp() >= level {
+                solid += 1;
+                let want = s_bg[i].exp();
+                assert!((sg[i] - want).abs() <= 1e-5 * want, "{kind:?}: σ {} against the background's {want}", sg[i]);
+            } else {
+                air += 1;
+                assert_eq!(sg[i], sp[i], "{kind:?}: the density mixes as before in the background's air");
+            }
+            assert_eq!(cg[i], cp[i], "{kind:?}: the colour mixes as before");
+        }
+        assert!(solid > 0 && air > 0);
+        // Solid points pass no density gradient to the residual: with every point solid, none.
+        let all = plain.clone().with_solid_background(1e-30);
+        let (_, _, g_all) = run(&all);
+        assert!(
+            g_all.residual.density.iter().all(|&v| v == 0.0),
+            "{kind:?}: a solid point trained the residual's density"
+        );
+        assert!(gg.residual.density.iter().any(|&v| v != 0.0), "{kind:?}: the air's points train it");
     }
 }

@@ -65,6 +65,7 @@ fn same_state<P: PartialEq>(a: &TrainState<P>, b: &TrainState<P>) {
         (None, None) => {}
         _ => panic!("one state has learned gains, the other not"),
     }
+    assert_eq!(a.error_map, b.error_map, "the error maps differ after resuming");
 }
 
 /// Trains `steps` steps straight, and again stopping at `stop`, writing a checkpoint file,
@@ -111,10 +112,13 @@ fn resume_matches<M: ModelFile>(
 fn a_resumed_nerf_run_equals_an_uninterrupted_one() {
     let scene = workspace::workspace(16, 8, 0.0, false);
     let field = NerfField::new(field_config(scene.aabb));
-    // Plain, and learning a gain per image (the gains and their moments ride in the file).
+    // Plain, learning a gain per image (the gains and their moments ride in the file), and
+    // with rays drawn by the error map (its tile values ride in the file).
     let mut gains = train_config(40);
     gains.image_gains = Some(GAIN_PRIOR);
-    for cfg in [train_config(40), gains] {
+    let mut errors = train_config(40);
+    errors.error_map = Some(0.5);
+    for cfg in [train_config(40), gains, errors] {
         resume_matches(&field, scene.aabb, &scene.views, &scratch("nerf"), &cfg, |m| match m {
             LoadedModel::Nerf(n) => (n.params, n.occupancy),
             LoadedModel::Residual(_) => panic!("saved a NeRF"),

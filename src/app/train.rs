@@ -142,6 +142,7 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
     cfg.random_background &= a.random_bg.unwrap_or(true);
     cfg.frozen_stride = a.frozen_stride.unwrap_or(cfg.frozen_stride);
     cfg.image_gains = a.image_gains;
+    cfg.error_map = a.error_map;
     let isa = Isa::detect();
     describe_run(&cfg, field.grid.log2_table_size, isa);
     match (background, &a.background) {
@@ -364,6 +365,7 @@ fn run_metadata(
         ("train_near_gradient_distance", cfg.near_gradient_distance.to_string()),
         ("train_frozen_stride", cfg.frozen_stride.to_string()),
         ("train_image_gains", cfg.image_gains.map_or("off".into(), |l| format!("on (prior {l})"))),
+        ("train_error_map", cfg.error_map.map_or("off".into(), |s| format!("share {s}"))),
         ("train_data", a.data.display().to_string()),
         ("train_split", a.split.clone()),
     ];

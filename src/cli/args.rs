@@ -140,6 +140,9 @@ pub struct TrainArgs {
     /// The identity prior's weight when a gain per training image is learned with the field
     /// (`--image-gains on`); `None`: off, the default.
     pub image_gains: Option<f32>,
+    /// The share of each step's rays drawn by the training error (`--error-map S`); `None`:
+    /// off, the default.
+    pub error_map: Option<f32>,
     /// Registration passes of a NeRF trained with `--pose-registration on`
     /// (`--registration-passes N`; default 1).
     pub registration_passes: Option<u32>,

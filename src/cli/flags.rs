@@ -49,6 +49,7 @@ pub(super) const FLAGS: &[Flag] = &[
     Flag { name: "region-vote", commands: &["train", "compare"], setting: true },
     Flag { name: "frozen-stride", commands: &["train", "compare"], setting: true },
     Flag { name: "image-gains", commands: &["train", "compare"], setting: true },
+    Flag { name: "error-map", commands: &["train"], setting: true },
     Flag { name: "exposure-correction", commands: &["train", "compare"], setting: true },
     Flag { name: "pose-registration", commands: &["train", "compare"], setting: true },
     Flag { name: "registration-passes", commands: &["train"], setting: true },
@@ -121,6 +122,8 @@ pub(super) struct Flags {
     pub(super) frozen_stride: Option<u32>,
     /// `--image-gains on`: the identity prior's weight; off or not given: `None`.
     pub(super) image_gains: Option<f32>,
+    /// `--error-map S`: the share of rays drawn by the error map; off or not given: `None`.
+    pub(super) error_map: Option<f32>,
     /// Flags given, in order.
     pub(super) given: Vec<String>,
     pub(super) images: Option<PathBuf>,
@@ -146,12 +149,11 @@ impl Flags {
                             "focus" => h.focus = true,
                             "beta" => h.beta = true,
                             "reach" => h.reach = true,
+                            "solid" => h.solid = true,
                             "all" => h = crate::train::prior::Prior::ALL,
-                            _ => {
-                                return Err(err(format!(
-                                    "--prior: '{part}' is not all, none, warm-start, region, focus, beta or reach"
-                                )))
-                            }
+                            _ => return Err(err(format!(
+                                "--prior: '{part}' is not all, none, warm-start, region, focus, beta, reach or solid"
+                            ))),
                         }
                     }
                 }
@@ -200,6 +202,16 @@ impl Flags {
             "image-gains" => {
                 self.image_gains =
                     (choice(p, name, &["on", "off"])? == "on").then_some(crate::train::trainer::GAIN_PRIOR)
+            }
+            "error-map" => {
+                let s = text(p, name)?;
+                self.error_map = match s.as_str() {
+                    "off" => None,
+                    _ => match s.parse::<f32>() {
+                        Ok(v) if v > 0.0 && v <= 1.0 => Some(v),
+                        _ => return Err(err(format!("--error-map: '{s}' is not a share in (0, 1] or 'off'"))),
+                    },
+                }
             }
             "registration-passes" => {
                 let n: u32 = positive(p, name)?;

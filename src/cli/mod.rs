@@ -103,6 +103,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             prior_settings: f.prior_args(),
             frozen_stride: f.frozen_stride,
             image_gains: f.image_gains,
+            error_map: f.error_map,
             registration_passes: f.registration_passes,
         }),
         "render" => Command::Render {

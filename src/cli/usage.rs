@@ -10,7 +10,7 @@ commands:
          [--background-data BG_DIR] [--beta U,E] [--region-floor S|off] [--focus-share F]
          [--region-vote V,S] [--frozen-stride N] [--exposure-correction on|off]
          [--pose-registration on|off]] [--pose-registration on [--registration-passes N]]
-         [--image-gains on|off] [--checkpoint-every N] [--scene-views N]
+         [--image-gains on|off] [--error-map S|off] [--checkpoint-every N] [--scene-views N]
          train a NeRF on DIR's transforms_<split>.json (default split: train); with --background,
          a Residual-NeRF (residual + Mixnet over the frozen background; --mix sum: Residual-NeRF-S),
          by default background-aware (--prior all: start at the background, a change region voted
@@ -23,6 +23,8 @@ commands:
          then the run at the registered poses. --image-gains on: learn a gain per image and
          colour channel with the field, for captures whose auto-exposure or white balance moved
          from shot to shot (renders show the capture's mean appearance; default off).
+         --error-map S: draw share S of each step's rays by the training error (a running
+         error per 8x8-pixel tile, Instant-NGP's error map; default off).
          Checkpoints go to MODEL with '.ckpt' before the extension (every N steps, and on
          SIGINT/SIGTERM, which then exit 130/143); a finished run removes its checkpoint
   train  --resume CHECKPOINT --data DIR --out MODEL [--split NAME] [--csv FILE] [--threads N]

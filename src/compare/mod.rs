@@ -5,7 +5,9 @@
 //! z-depth and crops), each [`Method`] is trained on the scene's views with the same
 //! [`TrainConfig`] and seed:
 //! - [`Method::Dex`]: a plain NeRF; scored twice — its expected depth ("NeRF") and its
-//!   threshold depth ("Dex-NeRF");
+//!   threshold depth ("Dex-NeRF"); [`Method::DexErrorMap`] the same NeRF trained with rays
+//!   drawn by its own error map;
+//! - [`Method::FineTune`]: the background NeRF fine-tuned on the scene;
 //! - [`Method::Residual`]: residual NeRF (+ Mixnet) over the frozen background, threshold depth
 //!   (Residual-NeRF; with [`MixKind::Sum`] the Residual-NeRF-S ablation of Eq. 6).
 //!
@@ -90,6 +92,10 @@ impl EvalSet {
 pub enum Method {
     /// A plain NeRF on the scene: "NeRF" (expected depth) and "Dex-NeRF" (threshold depth).
     Dex,
+    /// Dex-NeRF with rays drawn by its own training error ([`crate::train::error_map`], share
+    /// [`crate::train::error_map::ERROR_MAP_SHARE`]): the improvement of sampling that needs no
+    /// background, threshold depth.
+    DexErrorMap,
     /// The background NeRF fine-tuned on the scene (its weights and occupancy grid as the start;
     /// a continual update, as Evo-NeRF evolves one NeRF), threshold depth.
     FineTune,
@@ -115,8 +121,9 @@ const ACTIVATED: MixKind = MixKind::Mixnet(DensityMix::Activated);
 
 /// Every method with its name (file names, json, `--methods`) and label (tables, plots), in
 /// table order.
-const ALL: [(Method, &str, &str); 15] = [
+const ALL: [(Method, &str, &str); 17] = [
     (Method::Dex, "dex", "Dex-NeRF"),
+    (Method::DexErrorMap, "dex-error-map", "Dex-NeRF (error map)"),
     (Method::FineTune, "finetune", "Fine-tuned background"),
     (Method::RESIDUAL, "residual", "Residual-NeRF"),
     (
@@ -128,6 +135,11 @@ const ALL: [(Method, &str, &str); 15] = [
     (residual(RAW, false, Prior { focus: false, ..Prior::ALL }), "residual-no-focus", "Residual-NeRF (no focus)"),
     (residual(RAW, false, Prior { reach: false, ..Prior::ALL }), "residual-no-reach", "Residual-NeRF (no reach)"),
     (residual(RAW, false, Prior { beta: false, ..Prior::ALL }), "residual-no-beta", "Residual-NeRF (no β terms)"),
+    (
+        residual(RAW, false, Prior { solid: true, ..Prior::ALL }),
+        "residual-solid",
+        "Residual-NeRF (colour-only on solid)",
+    ),
     (residual(ACTIVATED, false, Prior::ALL), "residual-activated", "Residual-NeRF (activated mix)"),
     (
         residual(ACTIVATED, false, Prior { warm_start: false, ..Prior::ALL }),

@@ -173,6 +173,11 @@ pub fn run_scene(
                 Method::Dex => {
                     run_method(isa, name, method, &NerfField::new(cfg.field.clone()), None, train, test, cfg, log)
                 }
+                Method::DexErrorMap => {
+                    let mut mcfg = cfg.clone();
+                    mcfg.train.error_map = Some(crate::train::error_map::ERROR_MAP_SHARE);
+                    run_method(isa, name, method, &NerfField::new(cfg.field.clone()), None, train, test, &mcfg, log)
+                }
                 Method::FineTune => {
                     let field = NerfField::new(background.field.config().clone());
                     let start = Some((background.params.clone(), background.occupancy.clone()));

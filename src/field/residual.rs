@@ -35,6 +35,9 @@ pub struct ResidualField {
     mixnet: Mixnet,
     kind: MixKind,
     region: Option<ChangeRegion>,
+    /// `(σ, ln σ)` at and above which the background is solid: there the mix keeps the
+    /// background's density and mixes colour only ([`ResidualField::with_solid_background`]).
+    solid: Option<(f32, f32)>,
 }
 
 /// Trainable parameters of a residual model.
@@ -156,7 +159,40 @@ impl ResidualField {
         );
         let residual = NerfField::new(config.residual);
         let mixnet = Mixnet::new(residual.config().aabb, config.mixnet, residual.encoding_width());
-        ResidualField { background, residual, mixnet, kind: config.kind, region: None }
+        ResidualField { background, residual, mixnet, kind: config.kind, region: None, solid: None }
+    }
+
+    /// The field with colour-only mixing where the background is solid (σ_bg ≥ `sigma`): there
+    /// the residual's density is replaced by the background's, so β changes the colour (a
+    /// shadow, a caustic, a reflection on the table) and never the density: the background's
+    /// surfaces keep their depth. Elsewhere (the background's air, where a glass can stand)
+    /// both mix as before. Panics for [`MixKind::Sum`] (no β) or a non-positive `sigma`.
+    pub fn with_solid_background(mut self, sigma: f32) -> ResidualField {
+        assert!(matches!(self.kind, MixKind::Mixnet(_)), "residual: colour-only mixing needs a Mixnet's β");
+        assert!(sigma > 0.0 && sigma.is_finite(), "residual: the solid background's σ must be positive");
+        self.solid = Some((sigma, sigma.ln()));
+        self
+    }
+
+    /// The σ at and above which the background is solid (colour-only mixing), if set.
+    pub fn solid_background(&self) -> Option<f32> {
+        self.solid.map(|s| s.0)
+    }
+
+    /// Whether the background's raw density `s_bg` is solid (colour-only mixing there).
+    #[inline]
+    fn is_solid(&self, s_bg: f32) -> bool {
+        self.solid.is_some_and(|(_, l)| s_bg >= l)
+    }
+
+    /// The residual's raw density as the mix takes it: the background's where that is solid.
+    #[inline]
+    fn gated(&self, s_bg: f32, s_res: f32) -> f32 {
+        if self.is_solid(s_bg) {
+            s_bg
+        } else {
+            s_res
+        }
     }
 
     /// The field restricted to `region`: β = 0 outside it, so there the field is the
@@ -263,7 +299,7 @@ impl ResidualField {
             self.mask_logits(positions, &mut ctx.logits);
         }
         for (i, x) in ctx.inputs.iter_mut().enumerate() {
-            (x.s_res, x.c_res, x.m) = (ctx.raw[i], ctx.rgb_raw[i], ctx.logits[i]);
+            (x.s_res, x.c_res, x.m) = (self.gated(x.s_bg, ctx.raw[i]), ctx.rgb_raw[i], ctx.logits[i]);
         }
         ctx.outputs.clear();
         ctx.outputs.extend(ctx.inputs.iter().map(|x| mix_forward(self.kind, x)));
@@ -297,8 +333,8 @@ impl ResidualField {
             self.mask_logits(positions, &mut ctx.logits);
         }
         for i in 0..n {
-            let x =
-                MixInput { s_bg: ctx.raw[i], c_bg: [0.0; 3], s_res: ctx.s_res[i], c_res: [0.0; 3], m: ctx.logits[i] };
+            let s_res = self.gated(ctx.raw[i], ctx.s_res[i]);
+            let x = MixInput { s_bg: ctx.raw[i], c_bg: [0.0; 3], s_res, c_res: [0.0; 3], m: ctx.logits[i] };
             sigma[i] = mix_forward(self.kind, &x).sigma;
         }
     }
@@ -351,6 +387,12 @@ impl ResidualField {
         mix_backward_rows(self.kind, &ctx.inputs, &ctx.outputs, d_sigma, d_rgb, d_s, d_c, d_m);
         if n == 0 {
             return;
+        }
+        // Where the background is solid the mix took its density, not the residual's.
+        for (d, x) in d_s.iter_mut().zip(&ctx.inputs) {
+            if self.is_solid(x.s_bg) {
+                *d = 0.0;
+            }
         }
         // The Mixnet first: with a shared encoding its dL/dh(x) joins the residual's.
         let mut feature_grad: &[f32] = &[];
@@ -454,7 +496,7 @@ impl ResidualField {
         for i in from..from + n {
             match new_inside.get(k) {
                 Some(&r) if r as usize == i => {
-                    c.s_res[i] = c.sub_out[k];
+                    c.s_res[i] = self.gated(c.s_bg[i], c.sub_out[k]);
                     k += 1;
                 }
                 _ => {
@@ -577,7 +619,8 @@ impl ResidualField {
             let r = r as usize;
             let g = mix_backward(self.kind, &c.inputs[r], &c.outputs[r], d_sigma[r], d_rgb[r]);
             let b = c.beta[r];
-            c.d_s_res.push(g.s_res);
+            // Where the background is solid the mix took its density, not the residual's.
+            c.d_s_res.push(if self.is_solid(c.inputs[r].s_bg) { 0.0 } else { g.s_res });
             c.d_c_res.push(g.c_res);
             c.d_m.push(g.m + c.d_beta[r] * b * (1.0 - b));
         }

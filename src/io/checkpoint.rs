@@ -7,6 +7,8 @@
 //! - with learned per-image gains ([`TrainConfig::image_gains`]): `train.gains` f32 `[3V]`, the
 //!   log-gains of the V training images (r, g, b per image), and `train.gains.adam.m`,
 //!   `train.gains.adam.v` f32 `[3V]`, their optimiser's moments;
+//! - with the error map ([`TrainConfig::error_map`]): `train.error_map` f32 `[tiles]`, its tile
+//!   values ([`crate::train::error_map`]);
 //! - metadata `checkpoint`: `{"step", "skipped", "seconds", "adam_steps": [..], "fingerprint",
 //!   "train": {the TrainConfig}}`, plus `"gain_adam_steps"` with learned gains. `fingerprint` hashes the training views (poses, intrinsics,
 //!   pixels): a checkpoint resumes only on the data it was trained on. (A `prune` key, written
@@ -42,6 +44,8 @@ pub struct Checkpoint {
     pub moments: Vec<(Vec<f32>, Vec<f32>, u32)>,
     /// The learned per-image gains and their optimiser ([`TrainConfig::image_gains`]).
     pub gains: Option<ImageGains>,
+    /// The error map's tile values ([`TrainConfig::error_map`]).
+    pub error_map: Option<Vec<f32>>,
 }
 
 impl Checkpoint {
@@ -81,6 +85,7 @@ impl Checkpoint {
             skipped: self.skipped,
             seconds: self.seconds,
             gains: self.gains,
+            error_map: self.error_map,
         })
     }
 }
@@ -151,6 +156,9 @@ pub fn save_checkpoint<M: ModelFile>(
             w.tensor("train.focus.reach", vec![reach.len()], &reach).map_err(at)?;
         }
         w.meta("train_focus_share", &f.share.to_string());
+    }
+    if let Some(values) = &state.error_map {
+        w.tensor("train.error_map", vec![values.len()], values).map_err(at)?;
     }
     let mut meta = json!({
         "step": state.step,
@@ -273,7 +281,27 @@ fn read_checkpoint(r: &ModelReader, occupancy: OccupancyConfig) -> Result<Checkp
             Some(g)
         }
     };
-    Ok(Checkpoint { step, skipped, seconds, config, fingerprint, moments, gains, metadata: r.metadata().clone() })
+    let error_map = match config.error_map {
+        None => None,
+        Some(_) => {
+            let values = flat_tensor(r, "train.error_map")?;
+            if let Some(i) = values.iter().position(|x| !(x.is_finite() && *x >= 0.0)) {
+                return Err(format!("tensor 'train.error_map' holds a non-finite or negative value at {i}"));
+            }
+            Some(values)
+        }
+    };
+    Ok(Checkpoint {
+        step,
+        skipped,
+        seconds,
+        config,
+        fingerprint,
+        moments,
+        gains,
+        error_map,
+        metadata: r.metadata().clone(),
+    })
 }
 
 /// A one-dimensional f32 tensor of any length.
@@ -298,7 +326,7 @@ pub fn train_config_json(c: &TrainConfig) -> Value {
         "background": c.background, "random_background": c.random_background,
         "seed": c.seed, "distortion": c.distortion, "near_gradient_distance": c.near_gradient_distance,
         "beta_unchanged": c.beta.unchanged, "beta_entropy": c.beta.entropy, "beta_entropy_from": c.beta.entropy_from,
-        "frozen_stride": c.frozen_stride, "image_gains": c.image_gains,
+        "frozen_stride": c.frozen_stride, "image_gains": c.image_gains, "error_map": c.error_map,
     })
 }
 
@@ -365,6 +393,11 @@ pub fn parse_train_config(v: &Value, occupancy: OccupancyConfig) -> Result<Train
             None | Some(Value::Null) => None,
             Some(_) => Some(real(v, "image_gains", 0.0, 1e6)?),
         },
+        // Added later: absent or null means off.
+        error_map: match v.get("error_map") {
+            None | Some(Value::Null) => None,
+            Some(_) => Some(real(v, "error_map", 0.0, 1.0)?),
+        },
     })
 }
 
@@ -378,13 +411,15 @@ mod tests {
         c.beta = crate::train::beta::BetaRegulariser { unchanged: 0.25, entropy: 0.5, entropy_from: 0.75 };
         c.seed = 7;
         c.image_gains = Some(crate::train::trainer::GAIN_PRIOR);
+        c.error_map = Some(0.375);
         let back = parse_train_config(&train_config_json(&c), c.occupancy.clone()).unwrap();
         assert_eq!(back.beta, c.beta);
         assert_eq!(back.image_gains, c.image_gains);
+        assert_eq!(back.error_map, c.error_map);
         assert_eq!((back.steps, back.seed, back.schedule), (c.steps, c.seed, c.schedule.clone()));
         // A checkpoint written before the β weights and the gains existed reads them as off.
         let mut old = train_config_json(&c);
-        for k in ["beta_unchanged", "beta_entropy", "beta_entropy_from", "image_gains"] {
+        for k in ["beta_unchanged", "beta_entropy", "beta_entropy_from", "image_gains", "error_map"] {
             old.as_object_mut().unwrap().remove(k);
         }
         let back = parse_train_config(&old, c.occupancy.clone()).unwrap();

@@ -345,6 +345,9 @@ impl ModelFile for ResidualField {
                 w.meta("occupancy_frozen_outside_region", "true");
             }
         }
+        if let Some(sigma) = self.solid_background() {
+            w.meta("solid_background_sigma", &sigma.to_string());
+        }
         Ok(w)
     }
 }
@@ -468,6 +471,19 @@ fn residual_from(r: &ModelReader<'_>, background: Nerf, res: Nerf, kind: MixKind
             }
             field.with_region(region)
         }
+    };
+    let field = match r.meta("solid_background_sigma").ok() {
+        None => field,
+        Some(text) => match text.parse::<f32>() {
+            Ok(sigma) if sigma > 0.0 && sigma.is_finite() && matches!(field.kind(), MixKind::Mixnet(_)) => {
+                field.with_solid_background(sigma)
+            }
+            _ => {
+                return Err(format!(
+                    "metadata 'solid_background_sigma' = '{text}' is not a positive σ of a Mixnet model"
+                ))
+            }
+        },
     };
     Ok(LoadedModel::Residual(Box::new(ResidualModel { field, params, occupancy })))
 }

@@ -3,6 +3,7 @@
 
 pub mod adam;
 pub mod beta;
+pub mod error_map;
 pub mod field_fit;
 pub mod gains;
 pub mod lift;

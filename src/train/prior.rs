@@ -93,7 +93,19 @@ pub struct PriorConfig {
     /// Register each scene image's pose against the background before everything else
     /// ([`crate::train::register`]). Defaults to true.
     pub register: bool,
+    /// The background's threshold depth at a scene view's pose (what the vote and the reach
+    /// pixels read as its surface), when only depth is rendered, is rendered on its occupancy
+    /// grid kept to the cells whose value reached this fraction of `m·δ`
+    /// ([`OccupancyGrid::keep_at_least`], the onboard renderer's trade): the rays cross the
+    /// cells that never showed a density near the threshold without evaluating it. 0: the whole
+    /// grid. Defaults to [`DEPTH_SOLID_FRACTION`].
+    pub depth_solid_fraction: f32,
 }
+
+/// Default of [`PriorConfig::depth_solid_fraction`]: on the dev scenes the depth renders take a
+/// third of the time of the whole grid's and the region is the same within a cell
+/// (docs/DECISIONS.md, "The prior's depth renders on the thinned grid").
+pub const DEPTH_SOLID_FRACTION: f32 = 1.0;
 
 /// Default density floor (measured on the dev scenes: docs/DECISIONS.md).
 pub const DEFAULT_LIFT: Option<LiftConfig> = None;
@@ -115,6 +127,7 @@ impl Default for PriorConfig {
             lift: DEFAULT_LIFT,
             exposure: true,
             register: true,
+            depth_solid_fraction: DEPTH_SOLID_FRACTION,
         }
     }
 }
@@ -305,7 +318,9 @@ fn same_pose(a: &View, b: &View) -> bool {
 /// The background at each of `views`' poses: its colours — the background image at the same
 /// pose (`matches[i]`), else `background` rendered there (over `sky`) — and its threshold
 /// z-depth at `m` (rendered; NaN at holes), from one render per view (`rendered[i]` when given:
-/// view `i` rendered at its pose already).
+/// view `i` rendered at its pose already). A depth-only render marches the grid kept to the
+/// cells whose value reached `solid_fraction · m · δ` ([`PriorConfig::depth_solid_fraction`]).
+#[allow(clippy::too_many_arguments)]
 fn background_at(
     isa: Isa,
     background: &Nerf,
@@ -314,9 +329,13 @@ fn background_at(
     rendered: Vec<Option<RenderedView>>,
     sky: [f32; 3],
     m: DensityThreshold,
+    solid_fraction: f32,
 ) -> Vec<(Vec<[f32; 3]>, Vec<f32>)> {
     let mut renderer = ViewRenderer::new();
     let scene = Scene::from(background);
+    let grid = &background.occupancy;
+    let solid = grid.keep_at_least(solid_fraction * m.min_sigma() * grid.step_size());
+    let depth_scene = Scene { occupancy: &solid, ..Scene::from(background) };
     let each = views.iter().zip(matches).zip(rendered);
     each.map(|((v, matched), done)| {
         let k = &v.intrinsics;
@@ -324,7 +343,7 @@ fn background_at(
             (Some(r), _) => (r.rgb, r.threshold_z),
             (None, Some(b)) => {
                 let mut z = vec![0.0; (k.width * k.height) as usize];
-                renderer.depth(isa, &scene, k, &v.pose, m, &mut z);
+                renderer.depth(isa, &depth_scene, k, &v.pose, m, &mut z);
                 (b.rgb.clone(), z)
             }
             (None, None) => {
@@ -537,7 +556,7 @@ pub fn scene_prior(
         }
         false => views,
     };
-    let bg = background_at(isa, background, views, &matches, rendered, sky, m);
+    let bg = background_at(isa, background, views, &matches, rendered, sky, m, cfg.depth_solid_fraction);
     let matched_views = matches.iter().flatten().count();
     let corrections: Vec<ColourCorrection> = views
         .par_iter()
@@ -587,13 +606,18 @@ pub struct Prior {
     /// With the region: draw the rays that are not focused from the pixels whose ray crosses
     /// the region ([`ScenePrior::reach`]) instead of from all pixels.
     pub reach: bool,
+    /// Colour-only mixing where the background is solid (σ_bg at or above the default depth
+    /// threshold, [`ResidualField::with_solid_background`]): shadows and caustics on the
+    /// background's surfaces change their colour, never their depth.
+    pub solid: bool,
 }
 
 impl Prior {
     /// None: the paper's Residual-NeRF.
-    pub const NONE: Prior = Prior { warm_start: false, region: false, focus: false, beta: false, reach: false };
+    pub const NONE: Prior =
+        Prior { warm_start: false, region: false, focus: false, beta: false, reach: false, solid: false };
     /// All: the background-aware Residual-NeRF (the default).
-    pub const ALL: Prior = Prior { warm_start: true, region: true, focus: true, beta: true, reach: true };
+    pub const ALL: Prior = Prior { warm_start: true, region: true, focus: true, beta: true, reach: true, solid: false };
 }
 
 /// Where a residual model's training starts.
@@ -633,6 +657,9 @@ pub fn residual_start(
     let mut field = ResidualField::new(background.clone(), config);
     if let (true, Some(p)) = (hints.region, prior) {
         field = field.with_region(p.region.clone());
+    }
+    if hints.solid && matches!(field.kind(), crate::field::mix::MixKind::Mixnet(_)) {
+        field = field.with_solid_background(DensityThreshold::DEFAULT.min_sigma());
     }
     let mut rng = Rng::new(cfg.seed);
     let mut lifted = None;

@@ -34,6 +34,8 @@ pub(super) struct StepRays {
     pub(super) unchanged: Vec<bool>,
     /// Each ray's training image.
     pub(super) view: Vec<u32>,
+    /// Each ray's pixel in its image (`y · width + x`).
+    pub(super) pixel: Vec<u32>,
 }
 
 /// Marched samples a chunk of the fused step holds at least (it takes whole rays, so it ends
@@ -65,6 +67,8 @@ pub(super) struct Worker<C> {
     pub(super) n_kept: usize,
     /// This step's gradient of each training image's log-gain (empty without learned gains).
     pub(super) d_gain: Vec<[f32; 3]>,
+    /// Each of the slot's rays' squared colour error, mean over the channels (the error map's input).
+    pub(super) ray_errors: Vec<f32>,
 }
 
 impl<C: Default> Default for Worker<C> {
@@ -85,6 +89,7 @@ impl<C: Default> Default for Worker<C> {
             n_marched: 0,
             n_kept: 0,
             d_gain: Vec::new(),
+            ray_errors: Vec::new(),
         }
     }
 }
@@ -114,6 +119,7 @@ impl<C> Worker<C> {
         (self.loss, self.n_marched, self.n_kept) = (0.0, 0, 0);
         self.d_gain.clear();
         self.d_gain.resize(x.gains.len(), [0.0; 3]);
+        self.ray_errors.clear();
         x.model.begin_slot(slot);
         self.begin_chunk();
         let mut first = range.start;
@@ -225,6 +231,8 @@ impl<C> Worker<C> {
                     (err, err.map(|e| e * scale))
                 }
             };
+            let sq: f32 = err.iter().map(|e| e * e).sum();
+            self.ray_errors.push(sq / 3.0);
             self.loss += err.iter().map(|e| (e * e) as f64).sum::<f64>();
             let (d_s, d_c) = (&mut self.d_sigma[r.clone()], &mut self.d_rgb[r.clone()]);
             composite_ray_backward(sigma, delta, &self.rgb[r.clone()], &c, d_colour, d_s, d_c);

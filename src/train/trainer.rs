@@ -35,6 +35,7 @@ use crate::rng::Rng;
 use crate::simd::Isa;
 use crate::slots::{slot_range, SLOTS};
 use crate::train::beta::BetaRegulariser;
+use crate::train::error_map::{self, ErrorSampler, TileLayout};
 use crate::train::gains::ImageGains;
 pub use crate::train::gains::GAIN_PRIOR;
 use crate::train::{Adam, AdamConfig, LrSchedule};
@@ -88,6 +89,11 @@ pub struct TrainConfig {
     /// captures whose exposure or white balance moves from shot to shot. `None`: every image
     /// is taken as it is. Defaults to `None`.
     pub image_gains: Option<f32>,
+    /// `Some(share)`: draw that share of each step's rays by the training error
+    /// ([`crate::train::error_map`]: per tile of [`crate::train::error_map::TILE`]² pixels, a
+    /// running estimate of the squared error; a tile drawn in proportion to it), after the focus
+    /// share and before the uniform rest. `None`: no error map. Defaults to `None`.
+    pub error_map: Option<f32>,
 }
 
 /// A share of each step's rays drawn uniformly from a fixed list of pixels.
@@ -148,6 +154,7 @@ impl TrainConfig {
             beta: BetaRegulariser::default(),
             frozen_stride: FROZEN_STRIDE,
             image_gains: None,
+            error_map: None,
         }
     }
 }
@@ -293,6 +300,9 @@ pub struct TrainState<P> {
     pub seconds: f64,
     /// The training images' learned gains, when [`TrainConfig::image_gains`] is on.
     pub gains: Option<ImageGains>,
+    /// The error map's tile values ([`crate::train::error_map`]), when
+    /// [`TrainConfig::error_map`] is on.
+    pub error_map: Option<Vec<f32>>,
 }
 
 /// A training run, one [`Trainer::step`] at a time: the caller decides between steps whether
@@ -310,6 +320,9 @@ pub struct Trainer<'a, M: Model> {
     ctx: M::Context,
     /// Per view, a bitset of the focus pixels (the changed ones), when there is a focus.
     changed: Vec<Vec<u64>>,
+    /// The error map's tiles and its sampler, when [`TrainConfig::error_map`] is on.
+    tiles: TileLayout,
+    sampler: ErrorSampler,
     bad_in_a_row: u32,
     empty_in_a_row: u32,
 }
@@ -343,7 +356,8 @@ impl<'a, M: Model> Trainer<'a, M> {
             .collect();
         model.after_step(&mut params);
         let gains = cfg.image_gains.map(|prior| ImageGains::new(views.len(), prior));
-        let state = TrainState { step: 0, params, occupancy, adams, skipped: 0, seconds: 0.0, gains };
+        let error_map = cfg.error_map.map(|_| TileLayout::new(views).initial_values());
+        let state = TrainState { step: 0, params, occupancy, adams, skipped: 0, seconds: 0.0, gains, error_map };
         Self::from_state(isa, model, views, cfg, state).expect("a fresh state fits its model")
     }
 
@@ -373,6 +387,18 @@ impl<'a, M: Model> Trainer<'a, M> {
             (Some(_), None) | (None, Some(_)) => {
                 return Err("state and settings disagree on learning per-image gains".into())
             }
+            _ => {}
+        }
+        let tiles = TileLayout::new(views);
+        match (&state.error_map, cfg.error_map) {
+            (Some(m), Some(_)) if m.len() != tiles.len() => {
+                return Err(format!(
+                    "state has an error map of {} tiles, the run's views have {}",
+                    m.len(),
+                    tiles.len()
+                ))
+            }
+            (Some(_), None) | (None, Some(_)) => return Err("state and settings disagree on the error map".into()),
             _ => {}
         }
         if state.step > cfg.steps {
@@ -419,6 +445,8 @@ impl<'a, M: Model> Trainer<'a, M> {
             slots,
             ctx,
             changed,
+            tiles,
+            sampler: ErrorSampler::default(),
             bad_in_a_row: 0,
             empty_in_a_row: 0,
         })
@@ -469,7 +497,20 @@ impl<'a, M: Model> Trainer<'a, M> {
 
     fn step_inner(&mut self) -> Result<StepStats, TrainError> {
         let (isa, model, views, cfg) = (self.isa, self.model, self.views, self.cfg);
-        let Trainer { state, grads, rays, workers, slots, ctx, changed, bad_in_a_row, empty_in_a_row, .. } = self;
+        let Trainer {
+            state,
+            grads,
+            rays,
+            workers,
+            slots,
+            ctx,
+            changed,
+            tiles,
+            sampler,
+            bad_in_a_row,
+            empty_in_a_row,
+            ..
+        } = self;
         let step = state.step;
         let params = &mut state.params;
         let occupancy = &mut state.occupancy;
@@ -477,22 +518,32 @@ impl<'a, M: Model> Trainer<'a, M> {
             let mut orng = Rng::stream(cfg.seed ^ 0x0CC, step as u64);
             occupancy.update(step, &mut orng, |pts, sigma| model.density(isa, params, pts, sigma, ctx));
         }
-        // 1. Rays: the focus share from the focus pixels, the rest uniform over the reach pixels
-        //    when there are some, else over all pixels of all views.
+        // 1. Rays: the focus share from the focus pixels, then the error map's share by the
+        //    training error, the rest uniform over the reach pixels when there are some, else
+        //    over all pixels of all views.
         let mut srng = Rng::stream(cfg.seed, step as u64);
         rays.rays.clear();
         rays.targets.clear();
         rays.backgrounds.clear();
         rays.unchanged.clear();
         rays.view.clear();
+        rays.pixel.clear();
         let focused = match &cfg.focus {
             Some(f) if !f.pixels.is_empty() => (f.share.clamp(0.0, 1.0) * cfg.rays_per_step as f32).round() as usize,
+            _ => 0,
+        };
+        let errored = match (&state.error_map, cfg.error_map) {
+            (Some(values), Some(share)) => {
+                sampler.rebuild(values);
+                ((share.clamp(0.0, 1.0) * cfg.rays_per_step as f32).round() as usize).min(cfg.rays_per_step - focused)
+            }
             _ => 0,
         };
         let reach = cfg.focus.as_ref().and_then(|f| f.reach.as_deref()).filter(|r| !r.is_empty());
         for r in 0..cfg.rays_per_step {
             let (vi, p) = match (&cfg.focus, reach) {
                 (Some(f), _) if r < focused => f.pixels[srng.below(f.pixels.len() as u64) as usize],
+                _ if r < focused + errored => tiles.draw_pixel(sampler.draw(&mut srng), &mut srng),
                 (_, Some(reach)) => reach[srng.below(reach.len() as u64) as usize],
                 _ => {
                     let vi = srng.below(views.len() as u64) as u32;
@@ -502,6 +553,7 @@ impl<'a, M: Model> Trainer<'a, M> {
             };
             let v = &views[vi as usize];
             rays.view.push(vi);
+            rays.pixel.push(p);
             rays.unchanged.push(changed.get(vi as usize).is_some_and(|b| b[p as usize / 64] >> (p % 64) & 1 == 0));
             let w = v.intrinsics.width;
             rays.rays.push(pixel_ray(&v.intrinsics, &v.pose, p % w, p / w));
@@ -550,6 +602,13 @@ impl<'a, M: Model> Trainer<'a, M> {
             }
             if let Some(g) = &mut state.gains {
                 g.step(isa, lr, &gain_grads);
+            }
+            // The error map learns each ray's error, in ray order (the slots hold consecutive rays).
+            if let Some(values) = &mut state.error_map {
+                let errors = workers.iter().flat_map(|w| w.ray_errors.iter());
+                for ((&v, &p), &e) in rays.view.iter().zip(&rays.pixel).zip(errors) {
+                    error_map::record(values, tiles.tile_of(v, p), e);
+                }
             }
             *bad_in_a_row = 0;
         } else {
