@@ -151,9 +151,11 @@ impl Flags {
                             "reach" => h.reach = true,
                             "solid" => h.solid = true,
                             "all" => h = crate::train::prior::Prior::ALL,
-                            _ => return Err(err(format!(
+                            _ => {
+                                return Err(err(format!(
                                 "--prior: '{part}' is not all, none, warm-start, region, focus, beta, reach or solid"
-                            ))),
+                            )))
+                            }
                         }
                     }
                 }

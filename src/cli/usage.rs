@@ -6,7 +6,7 @@ pub const USAGE: &str = "usage: rnerf <command> [options]
 commands:
   train  --data DIR --out MODEL [--steps N] [--rays N] [--log2t N] [--seed S] [--threads N]
          [--split NAME] [--csv FILE] [--lr LR] [--distortion L] [--near-grad D] [--fixed-background] [--background BG_MODEL [--mix mixnet|sum]
-         [--density-mix raw|activated] [--mixnet-encoding own|shared] [--prior all|none|warm-start,region,focus,beta,reach]
+         [--density-mix raw|activated] [--mixnet-encoding own|shared] [--prior all|none|warm-start,region,focus,beta,reach,solid]
          [--background-data BG_DIR] [--beta U,E] [--region-floor S|off] [--focus-share F]
          [--region-vote V,S] [--frozen-stride N] [--exposure-correction on|off]
          [--pose-registration on|off]] [--pose-registration on [--registration-passes N]]
@@ -55,8 +55,9 @@ commands:
          --pose-registration: correct each scene image's pose so it agrees with the background
          where nothing changed (a robot arm's poses are millimetres off), default on;
          --image-gains: every run (background included) learns a gain per image, default off;
-         methods: dex, finetune, residual, residual-no-warm-start, residual-no-region,
-         residual-no-focus, residual-no-reach, residual-no-beta, residual-activated, residual-activated-no-warm-start,
+         methods: dex, dex-error-map, finetune, residual, residual-no-warm-start, residual-no-region,
+         residual-no-focus, residual-no-reach, residual-no-beta, residual-solid, residual-activated,
+         residual-activated-no-warm-start,
          residual-paper, residual-paper-activated, residual-paper-shared,
          residual-paper-activated-shared, residual-s)
          the paper's protocol and more: train the background on DIR (or load MODEL), then per scene
