@@ -320,9 +320,8 @@ pub struct Trainer<'a, M: Model> {
     ctx: M::Context,
     /// Per view, a bitset of the focus pixels (the changed ones), when there is a focus.
     changed: Vec<Vec<u64>>,
-    /// The error map's tiles and its sampler, when [`TrainConfig::error_map`] is on.
-    tiles: TileLayout,
-    sampler: ErrorSampler,
+    /// The error map's tiles and its sampler (used when [`TrainConfig::error_map`] is on).
+    error_draws: (TileLayout, ErrorSampler),
     bad_in_a_row: u32,
     empty_in_a_row: u32,
 }
@@ -445,8 +444,7 @@ impl<'a, M: Model> Trainer<'a, M> {
             slots,
             ctx,
             changed,
-            tiles,
-            sampler: ErrorSampler::default(),
+            error_draws: (tiles, ErrorSampler::default()),
             bad_in_a_row: 0,
             empty_in_a_row: 0,
         })
@@ -498,19 +496,9 @@ impl<'a, M: Model> Trainer<'a, M> {
     fn step_inner(&mut self) -> Result<StepStats, TrainError> {
         let (isa, model, views, cfg) = (self.isa, self.model, self.views, self.cfg);
         let Trainer {
-            state,
-            grads,
-            rays,
-            workers,
-            slots,
-            ctx,
-            changed,
-            tiles,
-            sampler,
-            bad_in_a_row,
-            empty_in_a_row,
-            ..
+            state, grads, rays, workers, slots, ctx, changed, error_draws, bad_in_a_row, empty_in_a_row, ..
         } = self;
+        let (tiles, sampler) = error_draws;
         let step = state.step;
         let params = &mut state.params;
         let occupancy = &mut state.occupancy;
