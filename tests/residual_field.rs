@@ -174,12 +174,15 @@ fn residual_gradients_match_finite_differences() {
     }
 }
 
-/// The median background σ at `pos`.
+/// A background σ splitting the points at `pos` in half: halfway (in log density) between the
+/// two middle ones, so no point sits on the level (the field's own background evaluation may
+/// differ from this density-only one in the last bit).
 fn median_background_sigma(bg: &Nerf, pos: &[Vec3]) -> f32 {
     let mut s = vec![0.0; pos.len()];
     bg.field.density(common::best_fp32_isa(), &bg.params, pos, &mut s, &mut Default::default());
     s.sort_by(f32::total_cmp);
-    s[s.len() / 2].exp()
+    let k = s.len() / 2;
+    (0.5 * (s[k - 1] + s[k])).exp()
 }
 
 /// With colour-only mixing where the background is solid, the mixed density there is the
