@@ -151,8 +151,16 @@ fn the_residual_chunk_path_matches_the_batch_path() {
         // only; the batch path evaluates them everywhere and masks β. A thin slab along one
         // edge (few rows inside) and half the box.
         if let MixKind::Mixnet(_) = kind {
-            // Colour-only mixing where the background is solid (σ_bg ≥ 1: part of the rows).
-            let solid = f.clone().with_solid_background(1.0);
+            // Colour-only mixing where the background is solid, at the median background σ of
+            // points across the box (so part of the rows mix colour only).
+            let pts: Vec<Vec3> = (0..256)
+                .map(|_| Vec3::new(rng.uniform(-1.0, 1.0), rng.uniform(-1.0, 1.0), rng.uniform(-1.0, 1.0)))
+                .collect();
+            let mut s_bg = vec![0.0; pts.len()];
+            f.background.field.density(Isa::detect(), &f.background.params, &pts, &mut s_bg, &mut Default::default());
+            s_bg.sort_by(f32::total_cmp);
+            assert!(s_bg[0] < s_bg[255], "the background's density varies across the box");
+            let solid = f.clone().with_solid_background(s_bg[128].exp());
             fused_matches_batch(&format!("residual {kind:?} {mixnet:?} colour-only on solid"), &solid, &p, &mut rng);
             for cells in [(0..4).collect::<Vec<u32>>(), (0..32).collect()] {
                 let region = ChangeRegion::from_cells(aabb(), 4, &cells).unwrap();

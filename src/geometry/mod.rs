@@ -49,3 +49,21 @@ impl Aabb {
         (near < far).then_some((near, far))
     }
 }
+
+/// The indices below `n` of the set bits of a bitset (bit `i` of word `i / 64`), in increasing
+/// order: the cells of a cell set (the occupancy grid's occupied or pinned cells, a region's).
+pub(crate) fn set_bits(bits: &[u64], n: usize) -> Vec<u32> {
+    let mut out = Vec::new();
+    for (w, &word) in bits.iter().enumerate() {
+        let mut rest = word;
+        while rest != 0 {
+            let i = w * 64 + rest.trailing_zeros() as usize;
+            if i >= n {
+                return out;
+            }
+            out.push(i as u32);
+            rest &= rest - 1;
+        }
+    }
+    out
+}

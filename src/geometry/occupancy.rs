@@ -189,12 +189,11 @@ impl OccupancyGrid {
         let n = self.values.len();
         let r = self.config.resolution;
         let cells: Vec<u32> = if let (true, Some(p)) = (self.frozen, &self.pinned) {
-            (0..n as u32).filter(|&i| p[i as usize / 64] >> (i % 64) & 1 == 1).collect()
+            super::set_bits(p, n)
         } else if step < self.config.warmup_steps {
             (0..n as u32).collect()
         } else {
-            let occupied: Vec<u32> =
-                (0..n as u32).filter(|&i| self.bits[i as usize / 64] >> (i % 64) & 1 == 1).collect();
+            let occupied = super::set_bits(&self.bits, n);
             let mut c: Vec<u32> = (0..n / 4).map(|_| rng.below(n as u64) as u32).collect();
             if !occupied.is_empty() {
                 c.extend((0..n / 4).map(|_| occupied[rng.below(occupied.len() as u64) as usize]));
@@ -205,7 +204,8 @@ impl OccupancyGrid {
         let mut points = Vec::with_capacity(BATCH);
         let mut sigma = vec![0f32; BATCH];
         let cell_size = self.aabb.size() / r as f32;
-        let mut fresh = vec![f32::NEG_INFINITY; n];
+        // Each drawn cell's optical thickness, in draw order.
+        let mut drawn = Vec::with_capacity(cells.len());
         for chunk in cells.chunks(BATCH) {
             points.clear();
             for &i in chunk {
@@ -214,22 +214,30 @@ impl OccupancyGrid {
                 points.push(self.aabb.min + (Vec3::new(x as f32, y as f32, z as f32) + jitter) * cell_size);
             }
             density(&points, &mut sigma[..chunk.len()]);
-            for (&i, &s) in chunk.iter().zip(&sigma) {
-                let v = if s.is_finite() { s.max(0.0) * self.step_size } else { 0.0 };
-                fresh[i as usize] = fresh[i as usize].max(v);
-            }
+            drawn.extend(sigma[..chunk.len()].iter().map(|&s| {
+                if s.is_finite() {
+                    s.max(0.0) * self.step_size
+                } else {
+                    0.0
+                }
+            }));
         }
         let refresh = |old: &mut f32, new: f32| {
             let decayed = if *old == f32::MAX { 0.0 } else { *old * self.config.decay };
             *old = if new.is_finite() { decayed.max(new) } else { decayed };
         };
         if self.frozen {
-            // The pinned cells' values only (what `keep_at_least` reads); every bit stays: the
-            // frozen cells keep theirs, the pinned ones are set.
-            for &i in &cells {
-                refresh(&mut self.values[i as usize], fresh[i as usize]);
+            // The pinned cells' values only (what `keep_at_least` reads; each drawn once); every
+            // bit stays: the frozen cells keep theirs, the pinned ones are set.
+            for (&i, &v) in cells.iter().zip(&drawn) {
+                refresh(&mut self.values[i as usize], v);
             }
             return;
+        }
+        // A cell drawn more than once keeps its largest thickness; one not drawn only decays.
+        let mut fresh = vec![f32::NEG_INFINITY; n];
+        for (&i, &v) in cells.iter().zip(&drawn) {
+            fresh[i as usize] = fresh[i as usize].max(v);
         }
         for (old, &new) in self.values.iter_mut().zip(&fresh) {
             refresh(old, new);

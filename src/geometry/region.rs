@@ -82,7 +82,7 @@ impl ChangeRegion {
 
     /// The region's cells in increasing order.
     pub fn cells(&self) -> Vec<u32> {
-        (0..self.n_cells() as u32).filter(|&i| self.has_cell(i as usize)).collect()
+        super::set_bits(&self.bits, self.n_cells())
     }
 
     /// Number of cells in the region.
