@@ -163,7 +163,7 @@ fn the_trainer_penalises_beta_on_unchanged_rays_only() {
         let mut c = TrainConfig::with_steps(3);
         c.rays_per_step = 64;
         c.occupancy = OccupancyConfig { resolution: 8, ..Default::default() };
-        c.focus = Some(Focus { share: 0.0, pixels: std::sync::Arc::new(pixels), reach: None });
+        c.focus = Some(Focus { share: 0.0, pixels: std::sync::Arc::new(pixels), reach: None, spared: None });
         c.beta = BetaRegulariser { unchanged, entropy: 0.0, entropy_from: 0.0 };
         let occupancy = OccupancyGrid::new(bg.field.config().aabb, c.occupancy.clone());
         let mut t = Trainer::starting_at(isa, &f, &views, &c, params.clone(), occupancy);

@@ -6,7 +6,7 @@ mod common;
 use glam::{Mat3, Vec3};
 use proptest::prelude::*;
 use residual_nerf::geometry::Distortion;
-use residual_nerf::render::{pixel_ray, Intrinsics, Pose};
+use residual_nerf::render::{image_ray, pixel_ray, Intrinsics, Pose};
 
 fn close(a: Vec3, b: Vec3) -> bool {
     (a - b).abs().max_element() < 1e-6
@@ -93,6 +93,30 @@ proptest! {
         let c = pose.rotation.transpose() * (r.at(1.5) - pose.translation);
         let (u, v) = k.project(c).expect("in front of the camera");
         prop_assert!((u - (i as f32 + 0.5)).abs() < 2e-3 && (v - (j as f32 + 0.5)).abs() < 2e-3, "({u}, {v}) for pixel ({i}, {j})");
+    }
+
+    /// A ray through any image point (the training rays jittered over their pixel) projects
+    /// back to that point, and at a pixel's centre it is that pixel's ray bit for bit.
+    #[test]
+    fn an_image_ray_projects_back_to_its_point(
+        fisheye in any::<bool>(), lens in any::<bool>(),
+        k1 in -0.4f32..0.4, k2 in -0.2f32..0.2,
+        x in 0.0f32..160.0, y in 0.0f32..120.0, i in 0u32..160, j in 0u32..120,
+    ) {
+        let d = match (lens, fisheye) {
+            (false, _) => Distortion::None,
+            (true, true) => Distortion::Fisheye { k: [k1, k2, 0.0, 0.0] },
+            (true, false) => Distortion::Radial { k: [k1, k2, 0.0, 0.0], p: [0.0, 0.0] },
+        };
+        let k = lens_k(d);
+        prop_assume!(d.check(k.width, k.height, k.fx, k.fy, k.cx, k.cy).is_ok());
+        let pose = Pose::look_at(Vec3::new(0.3, -1.2, 0.8), Vec3::new(0.0, 0.1, 0.05));
+        let r = image_ray(&k, &pose, x, y);
+        let c = pose.rotation.transpose() * (r.at(1.5) - pose.translation);
+        let (u, v) = k.project(c).expect("in front of the camera");
+        prop_assert!((u - x).abs() < 2e-3 && (v - y).abs() < 2e-3, "({u}, {v}) for ({x}, {y})");
+        let (a, b) = (pixel_ray(&k, &pose, i, j), image_ray(&k, &pose, i as f32 + 0.5, j as f32 + 0.5));
+        prop_assert_eq!((a.origin, a.dir, a.z_per_t), (b.origin, b.dir, b.z_per_t));
     }
 }
 

@@ -17,7 +17,7 @@ use residual_nerf::field::Nerf;
 use residual_nerf::geometry::ChangeRegion;
 use residual_nerf::render::{Aabb, DensityThreshold};
 use residual_nerf::rng::Rng;
-use residual_nerf::train::prior::{change_map, scene_prior, PriorConfig};
+use residual_nerf::train::prior::{change_map, changed_pixels, dilate, scene_prior, PriorConfig};
 use residual_nerf::train::trainer::train_nerf;
 use residual_nerf::GradientMode;
 
@@ -191,6 +191,8 @@ fn change_maps_find_the_glass_and_nothing_far_from_it() {
     for i in 0..6 {
         let map = change_map(&scene.views[i].rgb, &bg.views[i].rgb, size, size, &cfg);
         let mask = &scene.masks[i];
+        let raw = changed_pixels(&scene.views[i].rgb, &bg.views[i].rgb, size, size, &cfg);
+        assert_eq!(dilate(&raw, size, size, cfg.dilate_px), map, "view {i}: the map is the changed pixels dilated");
         let found = frac(mask, &map);
         let far = far_from(mask, size as usize, 6);
         let false_alarm =
@@ -264,6 +266,27 @@ fn the_voted_region_holds_the_glass_from_the_same_and_from_other_poses() {
         let cfg = PriorConfig { min_seen: 0.25, holes_see: false, ..Default::default() };
         let p = scene_prior(isa, &background, bgv, &scene.views, workspace::SKY, m, &cfg);
         assert_eq!(p.matched_views, if matched { 24 } else { 0 });
+        // The β penalty spares the changed pixels dilated by its own margin: by default the
+        // maps' (the focus pixels), with margin 0 the changed pixels alone, a subset.
+        assert_eq!(p.spared, p.focus);
+        if matched {
+            let tight = PriorConfig { beta_dilate_px: 0, ..cfg };
+            let q = scene_prior(isa, &background, bgv, &scene.views, workspace::SKY, m, &tight);
+            assert_eq!(q.focus, p.focus, "the margin changes the focus pixels");
+            let focus: std::collections::HashSet<_> = q.focus.iter().collect();
+            assert!(q.spared.iter().all(|x| focus.contains(x)), "a spared pixel outside the focus");
+            assert!(
+                q.spared.len() < q.focus.len(),
+                "margin 0 spares {} of {} focus pixels",
+                q.spared.len(),
+                q.focus.len()
+            );
+            let (v, w) = (0, size as usize);
+            let raw = changed_pixels(&scene.views[v].rgb, &bg_views.views[v].rgb, size, size, &cfg);
+            let spared: Vec<usize> = q.spared.iter().filter(|x| x.0 == v as u32).map(|x| x.1 as usize).collect();
+            let expected: Vec<usize> = (0..w * w).filter(|&p| raw[p]).collect();
+            assert_eq!(spared, expected, "view {v}: margin 0 spares exactly the changed pixels");
+        }
         assert!(p.region.contains(centre), "phase {phase}: the glass centre is outside the region");
         let volume = p.region.volume() as f32;
         let sphere = 4.0 / 3.0 * std::f32::consts::PI * radius.powi(3);

@@ -147,6 +147,7 @@ fn a_resumed_residual_run_equals_an_uninterrupted_one() {
             share: 0.5,
             pixels: std::sync::Arc::new(pixels(7)),
             reach: Some(std::sync::Arc::new(pixels(3))),
+            spared: Some(std::sync::Arc::new(pixels(11))),
         });
         aware.beta.unchanged = 0.02;
         for cfg in [train_config(40), aware] {

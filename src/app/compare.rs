@@ -100,6 +100,7 @@ pub(super) fn run(a: &crate::cli::CompareArgs) -> Result<(), String> {
     let (grid, mut train) = trainer_settings(a.steps, a.rays, a.log2t, a.seed, any_alpha);
     train.frozen_stride = a.frozen_stride.unwrap_or(train.frozen_stride);
     train.image_gains = a.image_gains;
+    train.pixel_jitter = a.pixel_jitter.unwrap_or(train.pixel_jitter);
     let cfg = CompareConfig {
         eval_every: a.eval_every.unwrap_or((train.steps / 20).max(1)),
         train,

@@ -143,6 +143,7 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
     cfg.frozen_stride = a.frozen_stride.unwrap_or(cfg.frozen_stride);
     cfg.image_gains = a.image_gains;
     cfg.error_map = a.error_map;
+    cfg.pixel_jitter = a.pixel_jitter.unwrap_or(cfg.pixel_jitter);
     let isa = Isa::detect();
     describe_run(&cfg, field.grid.log2_table_size, isa);
     match (background, &a.background) {
@@ -366,6 +367,7 @@ fn run_metadata(
         ("train_frozen_stride", cfg.frozen_stride.to_string()),
         ("train_image_gains", cfg.image_gains.map_or("off".into(), |l| format!("on (prior {l})"))),
         ("train_error_map", cfg.error_map.map_or("off".into(), |s| format!("share {s}"))),
+        ("train_pixel_jitter", cfg.pixel_jitter.to_string()),
         ("train_data", a.data.display().to_string()),
         ("train_split", a.split.clone()),
     ];

@@ -143,6 +143,8 @@ pub struct TrainArgs {
     /// The share of each step's rays drawn by the training error (`--error-map S`); `None`:
     /// off, the default.
     pub error_map: Option<f32>,
+    /// Rays through a random point of their pixel (`--pixel-jitter on|off`); `None`: the default.
+    pub pixel_jitter: Option<bool>,
     /// Registration passes of a NeRF trained with `--pose-registration on`
     /// (`--registration-passes N`; default 1).
     pub registration_passes: Option<u32>,
@@ -190,6 +192,9 @@ pub struct CompareArgs {
     /// The identity prior's weight when a gain per training image is learned with the field
     /// (`--image-gains on`); `None`: off, the default.
     pub image_gains: Option<f32>,
+    /// Every method's rays through a random point of their pixel (`--pixel-jitter on|off`);
+    /// `None`: the default.
+    pub pixel_jitter: Option<bool>,
 }
 
 /// The background prior's settings `rnerf train` and `rnerf compare` share; each `None` keeps
@@ -198,6 +203,8 @@ pub struct CompareArgs {
 pub struct PriorArgs {
     /// Weights of the β penalty on unchanged rays and of the β entropy (`--beta U,E`).
     pub beta: Option<(f32, f32)>,
+    /// Pixels around the changed ones the β penalty spares (`--beta-margin N`).
+    pub beta_margin: Option<u32>,
     /// The residual's density floor in the change region (`--region-floor S|off`).
     pub region_floor: Option<Option<f32>>,
     /// Share of each step's rays drawn from changed pixels (`--focus-share F`).
@@ -228,6 +235,7 @@ impl PriorArgs {
         if let Some((unchanged, entropy)) = self.beta {
             (p.beta.unchanged, p.beta.entropy) = (unchanged, entropy);
         }
+        p.beta_dilate_px = self.beta_margin.unwrap_or(p.beta_dilate_px);
         if let Some(floor) = self.region_floor {
             p.lift = floor.map(|floor| crate::train::lift::LiftConfig { floor, ..Default::default() });
         }

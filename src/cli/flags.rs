@@ -44,12 +44,14 @@ pub(super) const FLAGS: &[Flag] = &[
     Flag { name: "prior", commands: &["train"], setting: true },
     Flag { name: "background-data", commands: &["train"], setting: true },
     Flag { name: "beta", commands: &["train", "compare"], setting: true },
+    Flag { name: "beta-margin", commands: &["train", "compare"], setting: true },
     Flag { name: "region-floor", commands: &["train", "compare"], setting: true },
     Flag { name: "focus-share", commands: &["train", "compare"], setting: true },
     Flag { name: "region-vote", commands: &["train", "compare"], setting: true },
     Flag { name: "frozen-stride", commands: &["train", "compare"], setting: true },
     Flag { name: "image-gains", commands: &["train", "compare"], setting: true },
     Flag { name: "error-map", commands: &["train"], setting: true },
+    Flag { name: "pixel-jitter", commands: &["train", "compare"], setting: true },
     Flag { name: "exposure-correction", commands: &["train", "compare"], setting: true },
     Flag { name: "pose-registration", commands: &["train", "compare"], setting: true },
     Flag { name: "registration-passes", commands: &["train"], setting: true },
@@ -113,6 +115,8 @@ pub(super) struct Flags {
     pub(super) prior: Option<crate::train::prior::Prior>,
     pub(super) background_data: Option<PathBuf>,
     pub(super) beta: Option<(f32, f32)>,
+    /// `--beta-margin N`: pixels around the changed ones the β penalty spares.
+    pub(super) beta_margin: Option<u32>,
     pub(super) region_floor: Option<Option<f32>>,
     pub(super) focus_share: Option<f32>,
     pub(super) region_vote: Option<(f32, f32)>,
@@ -124,6 +128,8 @@ pub(super) struct Flags {
     pub(super) image_gains: Option<f32>,
     /// `--error-map S`: the share of rays drawn by the error map; off or not given: `None`.
     pub(super) error_map: Option<f32>,
+    /// `--pixel-jitter on|off`.
+    pub(super) pixel_jitter: Option<bool>,
     /// Flags given, in order.
     pub(super) given: Vec<String>,
     pub(super) images: Option<PathBuf>,
@@ -172,6 +178,13 @@ impl Flags {
                     _ => return Err(err(format!("--beta: '{s}' is not two weights U,E in [0, 1e6]"))),
                 }
             }
+            "beta-margin" => {
+                let s = text(p, name)?;
+                self.beta_margin = match s.parse::<u32>() {
+                    Ok(n) if n <= 16 => Some(n),
+                    _ => return Err(err(format!("--beta-margin: '{s}' is not a whole number of pixels in 0..=16"))),
+                }
+            }
             "region-floor" => {
                 let s = text(p, name)?;
                 self.region_floor = Some(match s.as_str() {
@@ -205,6 +218,7 @@ impl Flags {
                 self.image_gains =
                     (choice(p, name, &["on", "off"])? == "on").then_some(crate::train::trainer::GAIN_PRIOR)
             }
+            "pixel-jitter" => self.pixel_jitter = Some(choice(p, name, &["on", "off"])? == "on"),
             "error-map" => {
                 let s = text(p, name)?;
                 self.error_map = match s.as_str() {
@@ -358,6 +372,7 @@ impl Flags {
     pub(super) fn prior_args(&self) -> super::PriorArgs {
         super::PriorArgs {
             beta: self.beta,
+            beta_margin: self.beta_margin,
             region_floor: self.region_floor,
             focus_share: self.focus_share,
             region_vote: self.region_vote,

@@ -104,6 +104,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             frozen_stride: f.frozen_stride,
             image_gains: f.image_gains,
             error_map: f.error_map,
+            pixel_jitter: f.pixel_jitter,
             registration_passes: f.registration_passes,
         }),
         "render" => Command::Render {
@@ -151,6 +152,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             prior_settings: f.prior_args(),
             frozen_stride: f.frozen_stride,
             image_gains: f.image_gains,
+            pixel_jitter: f.pixel_jitter,
         }),
         "demo" => Command::Demo { out: f.out.clone(), steps: f.steps, size: f.size, seed: f.seed, threads },
         "import" => Command::ImportColmap(crate::data::colmap::ImportOptions {

@@ -7,10 +7,11 @@ commands:
   train  --data DIR --out MODEL [--steps N] [--rays N] [--log2t N] [--seed S] [--threads N]
          [--split NAME] [--csv FILE] [--lr LR] [--distortion L] [--near-grad D] [--fixed-background] [--background BG_MODEL [--mix mixnet|sum]
          [--density-mix raw|activated] [--mixnet-encoding own|shared] [--prior all|none|warm-start,region,focus,beta,reach,solid]
-         [--background-data BG_DIR] [--beta U,E] [--region-floor S|off] [--focus-share F]
-         [--region-vote V,S] [--frozen-stride N] [--exposure-correction on|off]
+         [--background-data BG_DIR] [--beta U,E] [--beta-margin N] [--region-floor S|off]
+         [--focus-share F] [--region-vote V,S] [--frozen-stride N] [--exposure-correction on|off]
          [--pose-registration on|off]] [--pose-registration on [--registration-passes N]]
-         [--image-gains on|off] [--error-map S|off] [--checkpoint-every N] [--scene-views N]
+         [--image-gains on|off] [--error-map S|off] [--pixel-jitter on|off] [--checkpoint-every N]
+         [--scene-views N]
          train a NeRF on DIR's transforms_<split>.json (default split: train); with --background,
          a Residual-NeRF (residual + Mixnet over the frozen background; --mix sum: Residual-NeRF-S),
          by default background-aware (--prior all: start at the background, a change region voted
@@ -24,7 +25,10 @@ commands:
          colour channel with the field, for captures whose auto-exposure or white balance moved
          from shot to shot (renders show the capture's mean appearance; default off).
          --error-map S: draw share S of each step's rays by the training error (a running
-         error per 8x8-pixel tile, Instant-NGP's error map; default off).
+         error per 8x8-pixel tile, Instant-NGP's error map; default off). --pixel-jitter on:
+         each training ray through a random point of its pixel instead of its centre (default
+         off). --beta-margin N: the β penalty spares the changed pixels grown by N pixels
+         (default 2, the change maps' own dilation).
          Checkpoints go to MODEL with '.ckpt' before the extension (every N steps, and on
          SIGINT/SIGTERM, which then exit 130/143); a finished run removes its checkpoint
   train  --resume CHECKPOINT --data DIR --out MODEL [--split NAME] [--csv FILE] [--threads N]
@@ -40,10 +44,12 @@ commands:
   compare --background DIR --scene DIR [--scene DIR ...] --out DIR [--background-model MODEL]
          [--methods dex,finetune,residual-paper,residual,...] [--scene-views N] [--steps N] [--rays N]
          [--log2t N] [--seed S] [--eval-every N] [--m M | --m-raw S] [--m-sweep M,M,...] [--threads N]
-         [--beta U,E] [--region-floor S|off] [--focus-share F] [--region-vote V,S] [--frozen-stride N]
-         [--exposure-correction on|off] [--pose-registration on|off] [--image-gains on|off]
+         [--beta U,E] [--beta-margin N] [--region-floor S|off] [--focus-share F] [--region-vote V,S]
+         [--frozen-stride N] [--exposure-correction on|off] [--pose-registration on|off]
+         [--image-gains on|off] [--pixel-jitter on|off]
          (--m-sweep: also score the final models at these σ thresholds, default 3,10,20,40;
          --beta: weights of the background-aware methods' β penalty and entropy;
+         --beta-margin: pixels around the changed ones the β penalty spares, default 2;
          --region-floor: lift the warm-started residual's raw density in the change region to S;
          --focus-share: share of each step's rays drawn from changed pixels, default 0.5;
          --region-vote: a cell is in the change region when at least S of all views see it and
@@ -55,6 +61,8 @@ commands:
          --pose-registration: correct each scene image's pose so it agrees with the background
          where nothing changed (a robot arm's poses are millimetres off), default on;
          --image-gains: every run (background included) learns a gain per image, default off;
+         --pixel-jitter: every run's training rays through random points of their pixels,
+         default off;
          methods: dex, dex-error-map, finetune, residual, residual-no-warm-start, residual-no-region,
          residual-no-focus, residual-no-reach, residual-no-beta, residual-solid, residual-activated,
          residual-activated-no-warm-start,

@@ -141,11 +141,17 @@ impl Ray {
 /// Where a distortion cannot be inverted (outside the region [`Distortion::check`] accepts for a
 /// dataset's images) the pixel's distorted point is used as if undistorted.
 pub fn pixel_ray(k: &Intrinsics, pose: &Pose, i: u32, j: u32) -> Ray {
+    image_ray(k, pose, i as f32 + 0.5, j as f32 + 0.5)
+}
+
+/// The ray through the image point `(x, y)` in pixels (pixel `(i, j)` spans `[i, i + 1) × [j,
+/// j + 1)`, its centre at `(i + ½, j + ½)`), through the lens, as [`pixel_ray`].
+pub fn image_ray(k: &Intrinsics, pose: &Pose, x: f32, y: f32) -> Ray {
     let cam = match k.distortion {
-        Distortion::None => Vec3::new((i as f32 + 0.5 - k.cx) / k.fx, -(j as f32 + 0.5 - k.cy) / k.fy, -1.0),
+        Distortion::None => Vec3::new((x - k.cx) / k.fx, -(y - k.cy) / k.fy, -1.0),
         d => {
-            let x = (i as f64 + 0.5 - k.cx as f64) / k.fx as f64;
-            let y = (j as f64 + 0.5 - k.cy as f64) / k.fy as f64;
+            let x = (x as f64 - k.cx as f64) / k.fx as f64;
+            let y = (y as f64 - k.cy as f64) / k.fy as f64;
             let u = d.undistort(x, y).unwrap_or(DVec3::new(x, y, 1.0));
             Vec3::new(u.x as f32, -u.y as f32, -u.z as f32)
         }

@@ -10,7 +10,7 @@ pub mod distortion;
 pub mod occupancy;
 pub mod region;
 
-pub use camera::{pixel_ray, DepthKind, Intrinsics, Pose, Ray};
+pub use camera::{image_ray, pixel_ray, DepthKind, Intrinsics, Pose, Ray};
 pub use distortion::Distortion;
 use glam::Vec3;
 pub use occupancy::{OccupancyConfig, OccupancyGrid, PackedSamples, RaySpan};

@@ -7,6 +7,9 @@
 //! - with learned per-image gains ([`TrainConfig::image_gains`]): `train.gains` f32 `[3V]`, the
 //!   log-gains of the V training images (r, g, b per image), and `train.gains.adam.m`,
 //!   `train.gains.adam.v` f32 `[3V]`, their optimiser's moments;
+//! - with a focus ([`TrainConfig::focus`]): `train.focus.pixels`, and when present
+//!   `train.focus.reach` and `train.focus.spared`, f32 `[2n]` (view, pixel) pairs; metadata
+//!   `train_focus_share`;
 //! - with the error map ([`TrainConfig::error_map`]): `train.error_map` f32 `[tiles]`, its tile
 //!   values ([`crate::train::error_map`]);
 //! - metadata `checkpoint`: `{"step", "skipped", "seconds", "adam_steps": [..], "fingerprint",
@@ -155,6 +158,10 @@ pub fn save_checkpoint<M: ModelFile>(
             let reach = flat(reach);
             w.tensor("train.focus.reach", vec![reach.len()], &reach).map_err(at)?;
         }
+        if let Some(spared) = &f.spared {
+            let spared = flat(spared);
+            w.tensor("train.focus.spared", vec![spared.len()], &spared).map_err(at)?;
+        }
         w.meta("train_focus_share", &f.share.to_string());
     }
     if let Some(values) = &state.error_map {
@@ -237,7 +244,11 @@ fn read_checkpoint(r: &ModelReader, occupancy: OccupancyConfig) -> Result<Checkp
             true => Some(std::sync::Arc::new(pixel_pairs(r, "train.focus.reach")?)),
             false => None,
         };
-        config.focus = Some(crate::train::trainer::Focus { share, pixels: std::sync::Arc::new(pixels), reach });
+        let spared = match r.shape("train.focus.spared").is_ok() {
+            true => Some(std::sync::Arc::new(pixel_pairs(r, "train.focus.spared")?)),
+            false => None,
+        };
+        config.focus = Some(crate::train::trainer::Focus { share, pixels: std::sync::Arc::new(pixels), reach, spared });
     }
     if step > config.steps {
         return Err(format!("metadata 'checkpoint': step {step} is past the run's {} steps", config.steps));
@@ -327,6 +338,7 @@ pub fn train_config_json(c: &TrainConfig) -> Value {
         "seed": c.seed, "distortion": c.distortion, "near_gradient_distance": c.near_gradient_distance,
         "beta_unchanged": c.beta.unchanged, "beta_entropy": c.beta.entropy, "beta_entropy_from": c.beta.entropy_from,
         "frozen_stride": c.frozen_stride, "image_gains": c.image_gains, "error_map": c.error_map,
+        "pixel_jitter": c.pixel_jitter,
     })
 }
 
@@ -398,6 +410,11 @@ pub fn parse_train_config(v: &Value, occupancy: OccupancyConfig) -> Result<Train
             None | Some(Value::Null) => None,
             Some(_) => Some(real(v, "error_map", 0.0, 1.0)?),
         },
+        // Added later: absent means rays through the pixels' centres.
+        pixel_jitter: match v.get("pixel_jitter") {
+            None => false,
+            Some(b) => b.as_bool().ok_or("'pixel_jitter' is not true or false")?,
+        },
     })
 }
 
@@ -412,10 +429,12 @@ mod tests {
         c.seed = 7;
         c.image_gains = Some(crate::train::trainer::GAIN_PRIOR);
         c.error_map = Some(0.375);
+        c.pixel_jitter = !c.pixel_jitter;
         let back = parse_train_config(&train_config_json(&c), c.occupancy.clone()).unwrap();
         assert_eq!(back.beta, c.beta);
         assert_eq!(back.image_gains, c.image_gains);
         assert_eq!(back.error_map, c.error_map);
+        assert_eq!(back.pixel_jitter, c.pixel_jitter);
         assert_eq!((back.steps, back.seed, back.schedule), (c.steps, c.seed, c.schedule.clone()));
         // A checkpoint written before the β weights and the gains existed reads them as off.
         let mut old = train_config_json(&c);

@@ -8,7 +8,8 @@ pub mod distortion;
 pub mod view;
 
 pub use crate::geometry::{
-    pixel_ray, Aabb, DepthKind, Intrinsics, OccupancyConfig, OccupancyGrid, PackedSamples, Pose, Ray, RaySpan,
+    image_ray, pixel_ray, Aabb, DepthKind, Intrinsics, OccupancyConfig, OccupancyGrid, PackedSamples, Pose, Ray,
+    RaySpan,
 };
 pub use composite::{
     composite_ray, composite_ray_backward, weights_from_density, RayAccumulator, RayComposite, EARLY_STOP_TRANSMITTANCE,

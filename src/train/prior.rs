@@ -66,6 +66,10 @@ pub struct PriorConfig {
     pub tolerance: f32,
     /// Dilation of the change maps (pixels). Defaults to 2.
     pub dilate_px: u32,
+    /// Dilation (pixels) of the changed pixels the β penalty on unchanged rays spares: a pixel
+    /// farther than this from every changed pixel shows the background, and its ray is
+    /// penalised for β. Defaults to [`BETA_DILATE_PX`].
+    pub beta_dilate_px: u32,
     /// Share of the views that see a cell which must see a change there. Defaults to 0.5.
     pub vote: f32,
     /// Share of all views that must see a cell before it can be changed (and at least 3
@@ -107,6 +111,10 @@ pub struct PriorConfig {
 /// (docs/DECISIONS.md, "The prior's depth renders on the thinned grid").
 pub const DEPTH_SOLID_FRACTION: f32 = 1.0;
 
+/// Default of [`PriorConfig::beta_dilate_px`]: the maps' own dilation, measured on the dev
+/// scenes against 0 and 1 (docs/DECISIONS.md, "β regularisers", "The penalty's margin").
+pub const BETA_DILATE_PX: u32 = 2;
+
 /// Default density floor (measured on the dev scenes: docs/DECISIONS.md).
 pub const DEFAULT_LIFT: Option<LiftConfig> = None;
 
@@ -118,6 +126,7 @@ impl Default for PriorConfig {
         PriorConfig {
             tolerance: 0.05,
             dilate_px: 2,
+            beta_dilate_px: BETA_DILATE_PX,
             vote: 0.5,
             min_seen: 0.25,
             holes_see: true,
@@ -143,6 +152,10 @@ pub struct ScenePrior {
     pub region: ChangeRegion,
     /// `(view, pixel)` of every changed pixel.
     pub focus: Vec<(u32, u32)>,
+    /// `(view, pixel)` of every pixel the β penalty spares (the changed pixels before the
+    /// maps' dilation, dilated by [`PriorConfig::beta_dilate_px`]); the same as [`Self::focus`]
+    /// when both dilations are equal.
+    pub spared: Vec<(u32, u32)>,
     /// `(view, pixel)` of every pixel whose ray crosses the region ([`reach_pixels`]).
     pub reach: Vec<(u32, u32)>,
     /// The colour correction applied to each training view (identity when off or negligible).
@@ -380,6 +393,11 @@ pub(super) fn box3(img: &[[f32; 3]], w: usize, h: usize) -> Vec<[f32; 3]> {
 /// The change map of a scene image against the background's colours at the same pose (see the
 /// module docs).
 pub fn change_map(scene: &[[f32; 3]], background: &[[f32; 3]], w: u32, h: u32, cfg: &PriorConfig) -> Vec<bool> {
+    dilate(&changed_pixels(scene, background, w, h, cfg), w, h, cfg.dilate_px)
+}
+
+/// The changed pixels of [`change_map`] before its dilation.
+pub fn changed_pixels(scene: &[[f32; 3]], background: &[[f32; 3]], w: u32, h: u32, cfg: &PriorConfig) -> Vec<bool> {
     let (w, h) = (w as usize, h as usize);
     assert!(scene.len() == w * h && background.len() == w * h, "prior: images differ from width × height");
     let (a, b) = (box3(scene, w, h), box3(background, w, h));
@@ -397,11 +415,16 @@ pub fn change_map(scene: &[[f32; 3]], background: &[[f32; 3]], w: u32, h: u32, c
             }
         }
     }
-    let r = cfg.dilate_px as i64;
+    kept
+}
+
+/// `map` (`w × h`, row-major) grown by `r` pixels (a square neighbourhood).
+pub fn dilate(map: &[bool], w: u32, h: u32, r: u32) -> Vec<bool> {
+    let (w, h, r) = (w as usize, h as usize, r as i64);
     let mut out = vec![false; w * h];
     for y in 0..h as i64 {
         for x in 0..w as i64 {
-            if kept[y as usize * w + x as usize] {
+            if map[y as usize * w + x as usize] {
                 for dy in -r..=r {
                     for dx in -r..=r {
                         let (xx, yy) = (x + dx, y + dy);
@@ -570,27 +593,35 @@ pub fn scene_prior(
             false => ColourCorrection::IDENTITY,
         })
         .collect();
-    let maps: Vec<Vec<bool>> = views
+    // Per view: the map (dilated by `dilate_px`) and the pixels the β penalty spares.
+    let (maps, spared_maps): (Vec<Vec<bool>>, Vec<Option<Vec<bool>>>) = views
         .par_iter()
         .zip(&bg)
         .zip(&corrections)
         .map(|((v, (colours, _)), c)| {
             let (w, h) = (v.intrinsics.width, v.intrinsics.height);
-            match *c == ColourCorrection::IDENTITY {
-                true => change_map(&v.rgb, colours, w, h, cfg),
-                false => change_map(&c.image(&v.rgb), colours, w, h, cfg),
-            }
+            let changed = match *c == ColourCorrection::IDENTITY {
+                true => changed_pixels(&v.rgb, colours, w, h, cfg),
+                false => changed_pixels(&c.image(&v.rgb), colours, w, h, cfg),
+            };
+            let spared = (cfg.beta_dilate_px != cfg.dilate_px).then(|| dilate(&changed, w, h, cfg.beta_dilate_px));
+            (dilate(&changed, w, h, cfg.dilate_px), spared)
         })
-        .collect();
+        .unzip();
     let depth: Vec<Vec<f32>> = bg.into_iter().map(|(_, z)| z).collect();
     let region = vote_region(&background.occupancy, views, &maps, &depth, cfg);
     let reach = reach_pixels(&region, views, &depth);
-    let focus = maps
-        .iter()
-        .enumerate()
-        .flat_map(|(i, map)| map.iter().enumerate().filter(|(_, &c)| c).map(move |(p, _)| (i as u32, p as u32)))
-        .collect();
-    ScenePrior { maps, matched_views, region, focus, reach, corrections, registrations }
+    let pixels_of = |maps: &mut dyn Iterator<Item = &Vec<bool>>| -> Vec<(u32, u32)> {
+        maps.enumerate()
+            .flat_map(|(i, map)| map.iter().enumerate().filter(|(_, &c)| c).map(move |(p, _)| (i as u32, p as u32)))
+            .collect()
+    };
+    let focus = pixels_of(&mut maps.iter());
+    let spared = match spared_maps.iter().all(Option::is_none) {
+        true => focus.clone(),
+        false => pixels_of(&mut spared_maps.iter().zip(&maps).map(|(s, m)| s.as_ref().unwrap_or(m))),
+    };
+    ScenePrior { maps, matched_views, region, focus, spared, reach, corrections, registrations }
 }
 
 /// Which of the background's hints a residual model uses.
@@ -693,6 +724,7 @@ pub fn residual_start(
             share,
             pixels: std::sync::Arc::new(p.focus.clone()),
             reach: reach.then(|| std::sync::Arc::new(p.reach.clone())),
+            spared: (p.spared != p.focus).then(|| std::sync::Arc::new(p.spared.clone())),
         }),
         _ => None,
     };

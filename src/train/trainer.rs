@@ -30,7 +30,7 @@ use crate::field::model::Model;
 use crate::field::residual::{ResidualConfig, ResidualField, ResidualModel};
 pub use crate::field::Nerf;
 use crate::field::{NerfConfig, NerfField};
-use crate::render::{pixel_ray, Aabb, OccupancyConfig, OccupancyGrid};
+use crate::render::{image_ray, pixel_ray, Aabb, OccupancyConfig, OccupancyGrid};
 use crate::rng::Rng;
 use crate::simd::Isa;
 use crate::slots::{slot_range, SLOTS};
@@ -94,6 +94,12 @@ pub struct TrainConfig {
     /// running estimate of the squared error; a tile drawn in proportion to it), after the focus
     /// share and before the uniform rest. `None`: no error map. Defaults to `None`.
     pub error_map: Option<f32>,
+    /// Shoot each training ray through a point drawn uniformly over its pixel's square instead
+    /// of the pixel's centre: a pixel's colour is the light over its whole area (a camera's
+    /// sensor, a renderer's pixel filter), so at a silhouette it blends the object and what is
+    /// behind it. On the dev scenes it does not change the depth (docs/DECISIONS.md, "Most of
+    /// it is a one-pixel ring around the glass"). Defaults to [`PIXEL_JITTER`].
+    pub pixel_jitter: bool,
 }
 
 /// A share of each step's rays drawn uniformly from a fixed list of pixels.
@@ -107,6 +113,8 @@ pub struct Focus {
     /// crosses its change region: the only rays with a gradient); `None` or empty: all pixels
     /// of all views.
     pub reach: Option<std::sync::Arc<Vec<(u32, u32)>>>,
+    /// `(view, pixel)` pairs the β penalty on unchanged rays spares; `None`: [`Self::pixels`].
+    pub spared: Option<std::sync::Arc<Vec<(u32, u32)>>>,
 }
 
 /// Default of [`TrainConfig::near_gradient_distance`] (chosen by measured depth; docs/DECISIONS.md).
@@ -119,6 +127,10 @@ pub const DISTORTION: f32 = 0.0;
 /// Default of [`TrainConfig::frozen_stride`] (chosen by measured depth and time;
 /// docs/DECISIONS.md, "The frozen background sampled coarsely").
 pub const FROZEN_STRIDE: u32 = 1;
+
+/// Default of [`TrainConfig::pixel_jitter`]: off, measured on the dev scenes (docs/DECISIONS.md,
+/// "Most of it is a one-pixel ring around the glass").
+pub const PIXEL_JITTER: bool = false;
 
 /// Default training steps: with [`TRAIN_RAYS`], about 2–3 minutes for 100 views of 200×200 on
 /// a 2-core machine (BENCHMARKS.md; docs/DECISIONS.md, "The engine").
@@ -155,6 +167,7 @@ impl TrainConfig {
             frozen_stride: FROZEN_STRIDE,
             image_gains: None,
             error_map: None,
+            pixel_jitter: PIXEL_JITTER,
         }
     }
 }
@@ -318,7 +331,8 @@ pub struct Trainer<'a, M: Model> {
     workers: Vec<Worker<M::Chunk>>,
     slots: Vec<M::Slot>,
     ctx: M::Context,
-    /// Per view, a bitset of the focus pixels (the changed ones), when there is a focus.
+    /// Per view, a bitset of the pixels the β penalty spares ([`Focus::spared`], else the focus
+    /// pixels), when there is a focus.
     changed: Vec<Vec<u64>>,
     /// The error map's tiles and its sampler (used when [`TrainConfig::error_map`] is on).
     error_draws: (TileLayout, ErrorSampler),
@@ -422,7 +436,7 @@ impl<'a, M: Model> Trainer<'a, M> {
                     .iter()
                     .map(|v| vec![0u64; (v.intrinsics.width as usize * v.intrinsics.height as usize).div_ceil(64)])
                     .collect();
-                for &(v, p) in f.pixels.iter() {
+                for &(v, p) in f.spared.as_deref().unwrap_or(&f.pixels).iter() {
                     bits[v as usize][p as usize / 64] |= 1 << (p % 64);
                 }
                 bits
@@ -544,7 +558,13 @@ impl<'a, M: Model> Trainer<'a, M> {
             rays.pixel.push(p);
             rays.unchanged.push(changed.get(vi as usize).is_some_and(|b| b[p as usize / 64] >> (p % 64) & 1 == 0));
             let w = v.intrinsics.width;
-            rays.rays.push(pixel_ray(&v.intrinsics, &v.pose, p % w, p / w));
+            rays.rays.push(match cfg.pixel_jitter {
+                true => {
+                    let (x, y) = ((p % w) as f32 + srng.uniform(0.0, 1.0), (p / w) as f32 + srng.uniform(0.0, 1.0));
+                    image_ray(&v.intrinsics, &v.pose, x, y)
+                }
+                false => pixel_ray(&v.intrinsics, &v.pose, p % w, p / w),
+            });
             rays.targets.push(v.rgb[p as usize]);
             rays.backgrounds.push(match cfg.random_background {
                 true => std::array::from_fn(|_| srng.uniform(0.0, 1.0)),

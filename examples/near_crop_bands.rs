@@ -1,0 +1,172 @@
+//! Where a model's near-crop error lies: the near crop's pixels outside the object mask binned
+//! by their distance (in pixels, chessboard) to the nearest mask pixel, each band's share of
+//! the pixels and of the near crop's squared error, its RMSE and its floater and see-through
+//! rates (prediction nearer / farther than the truth by 2 cm). Scored like `rnerf eval`
+//! (threshold depth σ ≥ 10/m, the frames' crops, the near limit 1.5 m, holes as depth 0), and
+//! the 1-px ring split by the side its mask neighbour lies on. With a second model (e.g. the
+//! background), the same for it.
+//!
+//! ```text
+//! cargo run --release --example near_crop_bands -- MODEL SCENE_DIR [BACKGROUND_MODEL]
+//! ```
+
+use residual_nerf::data::dataset::{Dataset, LoadOptions};
+use residual_nerf::eval::{GROSS_ERROR, NEAR_LIMIT};
+use residual_nerf::field::model::Model;
+use residual_nerf::io::{load_model, LoadedModel};
+use residual_nerf::render::view::Scene;
+use residual_nerf::render::{DensityThreshold, ViewRenderer};
+use residual_nerf::simd::Isa;
+use std::path::Path;
+
+/// Upper edges of the distance bands (pixels); the last band is everything farther.
+const BANDS: [u32; 6] = [0, 1, 2, 4, 8, 16];
+
+#[derive(Clone, Copy, Default)]
+struct Band {
+    pixels: u64,
+    sq: f64,
+    floaters: u64,
+    see_through: u64,
+}
+
+fn label(b: usize) -> String {
+    match b {
+        0 => "object mask".into(),
+        _ if b == BANDS.len() => format!("> {} px", BANDS[b - 1]),
+        _ => format!("{}–{} px", BANDS[b - 1] + 1, BANDS[b]),
+    }
+}
+
+/// Chessboard distance of every pixel to the nearest mask pixel (two-pass chamfer).
+fn distance(mask: &[bool], w: usize, h: usize) -> Vec<u32> {
+    let inf = u32::MAX / 2;
+    let mut d: Vec<u32> = mask.iter().map(|&m| if m { 0 } else { inf }).collect();
+    for y in 0..h {
+        for x in 0..w {
+            let mut v = d[y * w + x];
+            for (dx, dy) in [(-1i64, 0i64), (-1, -1), (0, -1), (1, -1)] {
+                let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+                if nx >= 0 && ny >= 0 && (nx as usize) < w {
+                    v = v.min(d[ny as usize * w + nx as usize] + 1);
+                }
+            }
+            d[y * w + x] = v;
+        }
+    }
+    for y in (0..h).rev() {
+        for x in (0..w).rev() {
+            let mut v = d[y * w + x];
+            for (dx, dy) in [(1i64, 0i64), (1, 1), (0, 1), (-1, 1)] {
+                let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+                if nx >= 0 && (nx as usize) < w && (ny as usize) < h {
+                    v = v.min(d[ny as usize * w + nx as usize] + 1);
+                }
+            }
+            d[y * w + x] = v;
+        }
+    }
+    d
+}
+
+/// The bands, then the 1-px ring by the side its mask neighbour lies on (left, right, above,
+/// below; a pixel with several counts on each).
+fn bands<M: Model>(isa: Isa, scene: &Scene<'_, M>, test: &Dataset) -> (Vec<Band>, [Band; 4]) {
+    let mut out = vec![Band::default(); BANDS.len() + 1];
+    let mut sides = [Band::default(); 4];
+    let mut renderer = ViewRenderer::new();
+    for (v, f) in test.views.iter().zip(&test.frames) {
+        let k = &v.intrinsics;
+        let (Some(truth), Some(crop), Some(mask)) = (&f.depth, f.crop, f.mask.as_deref()) else { continue };
+        let (w, h) = (k.width as usize, k.height as usize);
+        let mut z = vec![0.0; w * h];
+        renderer.depth(isa, scene, k, &v.pose, DensityThreshold::Sigma(10.0), &mut z);
+        // Holes count as depth 0 (the paper's protocol, as `rnerf eval`).
+        z.iter_mut().filter(|d| !d.is_finite()).for_each(|d| *d = 0.0);
+        let dist = distance(mask, w, h);
+        for y in crop[1] as usize..crop[3] as usize {
+            for x in crop[0] as usize..crop[2] as usize {
+                let p = y * w + x;
+                let t = truth[p];
+                if !(t.is_finite() && t > 0.0 && t < NEAR_LIMIT) {
+                    continue;
+                }
+                let b = BANDS.iter().position(|&e| dist[p] <= e).unwrap_or(BANDS.len());
+                let e = (z[p] - t) as f64;
+                let o = &mut out[b];
+                o.pixels += 1;
+                o.sq += e * e;
+                o.floaters += (z[p] < t - GROSS_ERROR) as u64;
+                o.see_through += (z[p] > t + GROSS_ERROR) as u64;
+                if b == 1 {
+                    let near = [
+                        (x > 0, p.wrapping_sub(1)),
+                        (x + 1 < w, p + 1),
+                        (y > 0, p.wrapping_sub(w)),
+                        (y + 1 < h, p + w),
+                    ];
+                    for (side, &(ok, q)) in sides.iter_mut().zip(&near) {
+                        if ok && mask[q] {
+                            side.pixels += 1;
+                            side.sq += e * e;
+                            side.floaters += (z[p] < t - GROSS_ERROR) as u64;
+                        }
+                    }
+                }
+            }
+        }
+    }
+    (out, sides)
+}
+
+fn print(name: &str, b: &[Band]) {
+    let (n, sq): (u64, f64) = (b.iter().map(|b| b.pixels).sum(), b.iter().map(|b| b.sq).sum());
+    println!("{name}: near-crop RMSE {:.4} m over {n} pixels", (sq / n as f64).sqrt());
+    println!("| band | pixels | share of squared error | RMSE (m) | floaters | see-through |");
+    println!("|---|---|---|---|---|---|");
+    for (i, x) in b.iter().enumerate() {
+        let p = x.pixels.max(1) as f64;
+        println!(
+            "| {} | {:.1}% | {:.1}% | {:.4} | {:.1}% | {:.1}% |",
+            label(i),
+            100.0 * x.pixels as f64 / n as f64,
+            100.0 * x.sq / sq,
+            (x.sq / p).sqrt(),
+            100.0 * x.floaters as f64 / p,
+            100.0 * x.see_through as f64 / p
+        );
+    }
+}
+
+fn main() -> Result<(), String> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let (model, dir, background) = match &args[..] {
+        [m, d] => (m, d, None),
+        [m, d, b] => (m, d, Some(b)),
+        _ => return Err("usage: near_crop_bands MODEL SCENE_DIR [BACKGROUND_MODEL]".into()),
+    };
+    let isa = Isa::detect();
+    let test = Dataset::load(Path::new(dir), "test", &LoadOptions::default()).map_err(|e| format!("{dir}: {e}"))?;
+    for path in std::iter::once(model).chain(background) {
+        let (b, sides) = match load_model(Path::new(path)).map_err(|e| e.to_string())? {
+            LoadedModel::Nerf(n) => bands(isa, &Scene::from(&*n), &test),
+            LoadedModel::Residual(r) => bands(isa, &Scene::from(&*r), &test),
+        };
+        print(path, &b);
+        let side = |s: &Band| {
+            format!(
+                "{:.4} m, {:.1}% floaters",
+                (s.sq / s.pixels.max(1) as f64).sqrt(),
+                100.0 * s.floaters as f64 / s.pixels.max(1) as f64
+            )
+        };
+        println!(
+            "1-px ring by the side of its mask neighbour: left {}; right {}; above {}; below {}",
+            side(&sides[0]),
+            side(&sides[1]),
+            side(&sides[2]),
+            side(&sides[3])
+        );
+    }
+    Ok(())
+}
