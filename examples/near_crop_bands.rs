@@ -2,7 +2,8 @@
 //! by their distance (in pixels, chessboard) to the nearest mask pixel, each band's share of
 //! the pixels and of the near crop's squared error, its RMSE and its floater and see-through
 //! rates (prediction nearer / farther than the truth by 2 cm). Scored like `rnerf eval`
-//! (threshold depth σ ≥ 10/m, the frames' crops, the near limit 1.5 m, holes as depth 0), and
+//! (threshold depth σ ≥ 10/m, the frames' crops, the near limit 1.5 m, holes as depth 0, each
+//! band an [`eval::DepthErrors`](residual_nerf::eval::DepthErrors) as `rnerf eval`'s), and
 //! the 1-px ring split by the side its mask neighbour lies on. With a second model (e.g. the
 //! background), the same for it.
 //!
@@ -11,7 +12,7 @@
 //! ```
 
 use residual_nerf::data::dataset::{Dataset, LoadOptions};
-use residual_nerf::eval::{GROSS_ERROR, NEAR_LIMIT};
+use residual_nerf::eval::{DepthErrors, NEAR_LIMIT};
 use residual_nerf::field::model::Model;
 use residual_nerf::io::{load_model, LoadedModel};
 use residual_nerf::render::view::Scene;
@@ -21,14 +22,6 @@ use std::path::Path;
 
 /// Upper edges of the distance bands (pixels); the last band is everything farther.
 const BANDS: [u32; 6] = [0, 1, 2, 4, 8, 16];
-
-#[derive(Clone, Copy, Default)]
-struct Band {
-    pixels: u64,
-    sq: f64,
-    floaters: u64,
-    see_through: u64,
-}
 
 fn label(b: usize) -> String {
     match b {
@@ -71,9 +64,9 @@ fn distance(mask: &[bool], w: usize, h: usize) -> Vec<u32> {
 
 /// The bands, then the 1-px ring by the side its mask neighbour lies on (left, right, above,
 /// below; a pixel with several counts on each).
-fn bands<M: Model>(isa: Isa, scene: &Scene<'_, M>, test: &Dataset) -> (Vec<Band>, [Band; 4]) {
-    let mut out = vec![Band::default(); BANDS.len() + 1];
-    let mut sides = [Band::default(); 4];
+fn bands<M: Model>(isa: Isa, scene: &Scene<'_, M>, test: &Dataset) -> (Vec<DepthErrors>, [DepthErrors; 4]) {
+    let mut out = vec![DepthErrors::default(); BANDS.len() + 1];
+    let mut sides = [DepthErrors::default(); 4];
     let mut renderer = ViewRenderer::new();
     for (v, f) in test.views.iter().zip(&test.frames) {
         let k = &v.intrinsics;
@@ -81,8 +74,6 @@ fn bands<M: Model>(isa: Isa, scene: &Scene<'_, M>, test: &Dataset) -> (Vec<Band>
         let (w, h) = (k.width as usize, k.height as usize);
         let mut z = vec![0.0; w * h];
         renderer.depth(isa, scene, k, &v.pose, DensityThreshold::Sigma(10.0), &mut z);
-        // Holes count as depth 0 (the paper's protocol, as `rnerf eval`).
-        z.iter_mut().filter(|d| !d.is_finite()).for_each(|d| *d = 0.0);
         let dist = distance(mask, w, h);
         for y in crop[1] as usize..crop[3] as usize {
             for x in crop[0] as usize..crop[2] as usize {
@@ -92,12 +83,7 @@ fn bands<M: Model>(isa: Isa, scene: &Scene<'_, M>, test: &Dataset) -> (Vec<Band>
                     continue;
                 }
                 let b = BANDS.iter().position(|&e| dist[p] <= e).unwrap_or(BANDS.len());
-                let e = (z[p] - t) as f64;
-                let o = &mut out[b];
-                o.pixels += 1;
-                o.sq += e * e;
-                o.floaters += (z[p] < t - GROSS_ERROR) as u64;
-                o.see_through += (z[p] > t + GROSS_ERROR) as u64;
+                out[b].add_pixel(z[p], t);
                 if b == 1 {
                     let near = [
                         (x > 0, p.wrapping_sub(1)),
@@ -107,9 +93,7 @@ fn bands<M: Model>(isa: Isa, scene: &Scene<'_, M>, test: &Dataset) -> (Vec<Band>
                     ];
                     for (side, &(ok, q)) in sides.iter_mut().zip(&near) {
                         if ok && mask[q] {
-                            side.pixels += 1;
-                            side.sq += e * e;
-                            side.floaters += (z[p] < t - GROSS_ERROR) as u64;
+                            side.add_pixel(z[p], t);
                         }
                     }
                 }
@@ -119,21 +103,20 @@ fn bands<M: Model>(isa: Isa, scene: &Scene<'_, M>, test: &Dataset) -> (Vec<Band>
     (out, sides)
 }
 
-fn print(name: &str, b: &[Band]) {
-    let (n, sq): (u64, f64) = (b.iter().map(|b| b.pixels).sum(), b.iter().map(|b| b.sq).sum());
-    println!("{name}: near-crop RMSE {:.4} m over {n} pixels", (sq / n as f64).sqrt());
+fn print(name: &str, b: &[DepthErrors]) {
+    let all = b.iter().fold(DepthErrors::default(), |a, x| a.merged(x));
+    println!("{name}: near-crop RMSE {:.4} m over {} pixels ({} holes)", all.rmse(), all.pixels, all.holes);
     println!("| band | pixels | share of squared error | RMSE (m) | floaters | see-through |");
     println!("|---|---|---|---|---|---|");
-    for (i, x) in b.iter().enumerate() {
-        let p = x.pixels.max(1) as f64;
+    for (i, x) in b.iter().enumerate().filter(|(_, x)| x.pixels > 0) {
         println!(
             "| {} | {:.1}% | {:.1}% | {:.4} | {:.1}% | {:.1}% |",
             label(i),
-            100.0 * x.pixels as f64 / n as f64,
-            100.0 * x.sq / sq,
-            (x.sq / p).sqrt(),
-            100.0 * x.floaters as f64 / p,
-            100.0 * x.see_through as f64 / p
+            100.0 * x.pixels as f64 / all.pixels as f64,
+            100.0 * x.sq_sum / all.sq_sum,
+            x.rmse(),
+            100.0 * x.floater_rate(),
+            100.0 * x.see_through_rate()
         );
     }
 }
@@ -153,13 +136,7 @@ fn main() -> Result<(), String> {
             LoadedModel::Residual(r) => bands(isa, &Scene::from(&*r), &test),
         };
         print(path, &b);
-        let side = |s: &Band| {
-            format!(
-                "{:.4} m, {:.1}% floaters",
-                (s.sq / s.pixels.max(1) as f64).sqrt(),
-                100.0 * s.floaters as f64 / s.pixels.max(1) as f64
-            )
-        };
+        let side = |s: &DepthErrors| format!("{:.4} m, {:.1}% floaters", s.rmse(), 100.0 * s.floater_rate());
         println!(
             "1-px ring by the side of its mask neighbour: left {}; right {}; above {}; below {}",
             side(&sides[0]),

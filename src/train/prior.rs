@@ -593,7 +593,8 @@ pub fn scene_prior(
             false => ColourCorrection::IDENTITY,
         })
         .collect();
-    // Per view: the map (dilated by `dilate_px`) and the pixels the β penalty spares.
+    // Per view: the map (the changed pixels dilated by `dilate_px`) and, when the β penalty's
+    // margin differs, the changed pixels dilated by it.
     let (maps, spared_maps): (Vec<Vec<bool>>, Vec<Option<Vec<bool>>>) = views
         .par_iter()
         .zip(&bg)
@@ -611,17 +612,19 @@ pub fn scene_prior(
     let depth: Vec<Vec<f32>> = bg.into_iter().map(|(_, z)| z).collect();
     let region = vote_region(&background.occupancy, views, &maps, &depth, cfg);
     let reach = reach_pixels(&region, views, &depth);
-    let pixels_of = |maps: &mut dyn Iterator<Item = &Vec<bool>>| -> Vec<(u32, u32)> {
-        maps.enumerate()
-            .flat_map(|(i, map)| map.iter().enumerate().filter(|(_, &c)| c).map(move |(p, _)| (i as u32, p as u32)))
-            .collect()
-    };
-    let focus = pixels_of(&mut maps.iter());
-    let spared = match spared_maps.iter().all(Option::is_none) {
-        true => focus.clone(),
-        false => pixels_of(&mut spared_maps.iter().zip(&maps).map(|(s, m)| s.as_ref().unwrap_or(m))),
+    let focus = set_pixels(&maps);
+    let spared = match spared_maps.into_iter().collect::<Option<Vec<_>>>() {
+        Some(spared_maps) => set_pixels(&spared_maps),
+        None => focus.clone(),
     };
     ScenePrior { maps, matched_views, region, focus, spared, reach, corrections, registrations }
+}
+
+/// `(view, pixel)` of every set pixel of per-view maps, in view then pixel order.
+fn set_pixels(maps: &[Vec<bool>]) -> Vec<(u32, u32)> {
+    let each = maps.iter().enumerate();
+    each.flat_map(|(i, map)| map.iter().enumerate().filter(|(_, &c)| c).map(move |(p, _)| (i as u32, p as u32)))
+        .collect()
 }
 
 /// Which of the background's hints a residual model uses.
