@@ -75,6 +75,8 @@ def main():
         ("FMA peak, 1 thread", "fma_peak_gflops_1t", " GFLOP/s"),
         ("threshold depth, 200×200 view, bench's model", "render_depth_ms_200", " ms"),
         ("threshold depth, 200×200 view, bench's residual model", "render_depth_ms_200_residual", " ms"),
+        ("threshold depth, 640×480 view, bench's model", "render_depth_ms_640x480", " ms"),
+        ("threshold depth, 640×480 view, bench's residual model", "render_depth_ms_640x480_residual", " ms"),
     ]
     def timed(level, name, what, command, digits):
         """Wall time and peak RSS of one `/usr/bin/time -v` run, as two rows."""
@@ -118,7 +120,9 @@ def main():
         b = load_json(os.path.join(out, f"bench_models_{level}.json"))
         if b:
             for key, name in (("render_depth_ms_200", "threshold depth, 200×200, dev background model"),
-                              ("render_depth_ms_200_residual", "threshold depth, 200×200, glass_up residual model")):
+                              ("render_depth_ms_200_residual", "threshold depth, 200×200, glass_up residual model"),
+                              ("render_depth_ms_640x480", "threshold depth, 640×480, dev background model"),
+                              ("render_depth_ms_640x480_residual", "threshold depth, 640×480, glass_up residual model")):
                 if key in b:
                     row(name, f"{fmt(b[key])} ms", level, "rnerf bench --json --model bg --model res --data DEV/glass_up")
     peers = {}

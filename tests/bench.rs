@@ -30,3 +30,22 @@ fn bench_reports_every_figure_under_its_name() {
     let scaling = k.mlp_fwd_bwd_gflops.median / k.mlp_fwd_bwd_gflops_1t.median;
     assert_eq!(report.derived.mlp_thread_scaling, scaling);
 }
+
+/// The trained models' views: a 200×200 test camera rescaled to 640 wide and cropped to 480
+/// rows looks through the same points of the scene (a point of the old image lands at the
+/// rescaled, shifted position), and rescaling to 200 keeps the camera as it is.
+#[test]
+fn a_resized_view_sees_the_same_scene() {
+    use residual_nerf::bench::resized;
+    use residual_nerf::geometry::{image_ray, Intrinsics, Pose};
+    let k = Intrinsics::pinhole(200, 200, 240.0, 236.0, 97.5, 103.0);
+    assert_eq!(resized(k, 200, None), k);
+    let big = resized(k, 640, Some(480));
+    assert_eq!((big.width, big.height), (640, 480));
+    let pose = Pose { rotation: glam::Mat3::IDENTITY, translation: glam::Vec3::ZERO };
+    for (x, y) in [(0.0f32, 0.0f32), (100.0, 100.0), (37.5, 180.25), (200.0, 140.0)] {
+        let a = image_ray(&k, &pose, x, y);
+        let b = image_ray(&big, &pose, x * 3.2, y * 3.2 - 80.0);
+        assert!((a.dir - b.dir).length() < 1e-5, "({x}, {y}): {:?} against {:?}", a.dir, b.dir);
+    }
+}

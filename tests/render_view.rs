@@ -85,3 +85,81 @@ fn segmented_rendering_equals_whole_ray_compositing() {
         }
     }
 }
+
+/// The full path of a residual model (the training step's chunk path, colour and β only of
+/// the samples a ray composites) against compositing each whole ray from the batch forward:
+/// the same colour, expected depth and β, and the threshold depth bit for bit.
+#[test]
+fn a_residual_models_full_render_equals_whole_ray_compositing() {
+    use residual_nerf::data::workspace;
+    use residual_nerf::field::mix::{DensityMix, MixKind};
+    use residual_nerf::field::mixnet::{default_mixnet_grid, MixnetEncoding};
+    use residual_nerf::field::residual::ResidualConfig;
+    use residual_nerf::render::view::Scene;
+    use residual_nerf::train::trainer::train_residual;
+    let isa = Isa::detect();
+    let (bg, glass) = (workspace::workspace(16, 12, 0.0, false), workspace::workspace(16, 12, 0.0, true));
+    let field = NerfConfig {
+        grid: HashGridConfig { levels: 8, log2_table_size: 12, base_resolution: 4, finest_resolution: 64 },
+        aabb: bg.aabb,
+    };
+    let mut cfg = TrainConfig::with_steps(40);
+    cfg.rays_per_step = 256;
+    cfg.occupancy = OccupancyConfig {
+        resolution: 16,
+        steps_per_diagonal: 128,
+        max_samples: 200,
+        warmup_steps: 16,
+        ..Default::default()
+    };
+    let nerf = train_nerf(isa, &bg.views, field.clone(), &cfg, 0, |_| {}).expect("trains");
+    let config = ResidualConfig {
+        residual: field,
+        kind: MixKind::Mixnet(DensityMix::Raw),
+        mixnet: MixnetEncoding::Own(default_mixnet_grid()),
+    };
+    let model = train_residual(isa, nerf, &glass.views, config, &cfg, 0, |_| {}).expect("trains");
+    let scene = Scene::from(&model);
+    let m = DensityThreshold::Sigma(3.0);
+    let bgc = [0.2, 0.5, 0.9];
+    let v = &workspace::workspace(16, 2, 0.4, true).views[1];
+    let k = &v.intrinsics;
+    let n = (k.width * k.height) as usize;
+    let (mut rgb, mut ez, mut tz, mut beta) = (vec![[0.0; 3]; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    let out = FullOutputs { rgb: &mut rgb, expected_z: &mut ez, threshold_z: &mut tz, beta: &mut beta };
+    ViewRenderer::new().full(isa, &scene, k, &v.pose, bgc, m, out);
+    let (mut some_beta, mut hits) = (false, 0);
+    for p in 0..n {
+        let ray = pixel_ray(k, &v.pose, p as u32 % k.width, p as u32 / k.width);
+        let mut s = PackedSamples::default();
+        model.occupancy.march(ray.origin, ray.dir, &mut s);
+        let pos: Vec<_> = s.t.iter().map(|&t| ray.at(t)).collect();
+        let dirs = vec![ray.dir; pos.len()];
+        let (mut sigma, mut c, mut b) = (vec![0.0; pos.len()], vec![[0.0; 3]; pos.len()], Vec::new());
+        let mut ctx = Default::default();
+        if !pos.is_empty() {
+            model.field.forward(isa, &model.params, &pos, &dirs, &mut sigma, &mut c, &mut ctx);
+            model.field.betas(&ctx, &mut b);
+        }
+        let whole = composite_ray(&sigma, &s.delta, &s.t, &c, bgc);
+        let mut weights = vec![0.0; sigma.len()];
+        residual_nerf::render::composite::weights_from_density(&sigma, &s.delta, &mut weights);
+        let want_beta: f32 = weights.iter().zip(&b).map(|(w, b)| w * b).sum();
+        let want_t =
+            s.t.iter().zip(&sigma).find(|(_, &x)| x >= m.min_sigma()).map_or(f32::NAN, |(&t, _)| ray.range_to_z(t));
+        for ch in 0..3 {
+            assert!((rgb[p][ch] - whole.rgb[ch]).abs() < 1e-4, "pixel {p}: colour {:?} vs {:?}", rgb[p], whole.rgb);
+        }
+        assert!((ez[p] - ray.range_to_z(whole.depth)).abs() < 1e-3, "pixel {p}: expected depth");
+        assert!((beta[p] - want_beta).abs() < 1e-4, "pixel {p}: β {} vs {want_beta}", beta[p]);
+        assert!(
+            tz[p].to_bits() == want_t.to_bits() || (tz[p].is_nan() && want_t.is_nan()),
+            "pixel {p}: threshold {} vs {want_t}",
+            tz[p]
+        );
+        some_beta |= want_beta > 1e-3;
+        hits += want_t.is_finite() as usize;
+    }
+    assert!(some_beta, "the model should mix somewhere");
+    assert!(hits > n / 8, "the model should have solid surfaces ({hits} of {n} pixels hit)");
+}

@@ -15,7 +15,7 @@ pub mod pipeline;
 pub mod report;
 
 pub use kernels::{bare_gather, nerf_mlps, ray_coherent_positions};
-pub use pipeline::TrainedView;
+pub use pipeline::{resized, TrainedView};
 pub use report::{BenchReport, DerivedFigures, KernelFigures, PipelineFigures, Stat};
 
 use crate::encoding::HashGridConfig;

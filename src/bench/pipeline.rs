@@ -20,15 +20,26 @@ use std::path::Path;
 
 /// A trained model whose depth rendering `rnerf bench --model M --data D` times in place of
 /// the bench's own short-trained one — those are still foggy, so their depth rays march far
-/// (BENCHMARKS.md, "Depth rendering"). Its kind picks the figure: a NeRF `render_depth_ms_200`, a
-/// residual model `render_depth_ms_200_residual`.
+/// (BENCHMARKS.md, "Depth rendering"). Its kind picks the figures: a NeRF
+/// `render_depth_ms_200` and `render_depth_ms_640x480`, a residual model the same with
+/// `_residual`.
 pub struct TrainedView {
     /// The model, as loaded.
     pub model: LoadedModel,
-    /// The first test view of `D`, rescaled to 200 pixels wide.
+    /// The first test view of `D`, as the dataset gives it.
     pub intrinsics: Intrinsics,
     /// Its pose.
     pub pose: Pose,
+}
+
+/// `k` rescaled to `width` pixels across; with `height`, the rescaled image cropped (or
+/// extended) about its centre to that many rows — a depth camera's 640×480 from a square view.
+pub fn resized(k: Intrinsics, width: u32, height: Option<u32>) -> Intrinsics {
+    let s = width as f32 / k.width as f32;
+    let scaled = ((k.height as f32 * s).round() as u32).max(1);
+    let height = height.unwrap_or(scaled);
+    let shift = 0.5 * (height as f32 - scaled as f32);
+    Intrinsics { width, height, fx: k.fx * s, fy: k.fy * s, cx: k.cx * s, cy: k.cy * s + shift, ..k }
 }
 
 impl TrainedView {
@@ -38,13 +49,10 @@ impl TrainedView {
         let opts = LoadOptions { ground_truth: false, ..Default::default() };
         let test = Dataset::load(data, "test", &opts).map_err(|e| e.to_string())?;
         let view = test.views.first().ok_or_else(|| format!("{}: the test split has no views", data.display()))?;
-        let (k, s) = (view.intrinsics, 200.0 / view.intrinsics.width as f32);
-        let height = ((k.height as f32 * s).round() as u32).max(1);
-        let intrinsics = Intrinsics { width: 200, height, fx: k.fx * s, fy: k.fy * s, cx: k.cx * s, cy: k.cy * s, ..k };
-        Ok(TrainedView { model: loaded, intrinsics, pose: view.pose })
+        Ok(TrainedView { model: loaded, intrinsics: view.intrinsics, pose: view.pose })
     }
 
-    /// The figure it is timed under.
+    /// The figure its 200-pixel view is timed under.
     pub fn figure(&self) -> &'static str {
         match self.model {
             LoadedModel::Nerf(_) => "render_depth_ms_200",
@@ -100,8 +108,9 @@ pub(super) fn measure(
     let mixnet_mac_share = residual.field.mixnet().mlp().fwd_bwd_macs_per_sample() as f64
         / (nets.0.fwd_bwd_macs_per_sample() + nets.1.fwd_bwd_macs_per_sample()) as f64;
 
-    // Threshold depth (σ ≥ 10/m, depth-only path) of one 200×200 view of each model, through
-    // the robot's library call: `DepthRenderer` with its defaults (thinned grid), on this pool.
+    // Threshold depth (σ ≥ 10/m, depth-only path) of one view of each model, 200 pixels wide
+    // and 640×480 (a depth camera's size), through the robot's library call: `DepthRenderer`
+    // with its defaults (thinned grid), on this pool.
     progress.start("depth views");
     let k = Intrinsics::from_fov_x(200, 200, 50f32.to_radians());
     let pose = scene.views[0].pose;
@@ -115,14 +124,16 @@ pub(super) fn measure(
         }
     }
     let depth_ms = |s: TrainedView| {
-        let (k, pose) = (s.intrinsics, s.pose);
-        let mut z = vec![0f32; (k.width * k.height) as usize];
         let mut camera = DepthRenderer::new(s.model);
-        let v = time_reps(reps, || camera.depth(&k, &pose, request, &mut z).expect("a valid camera and buffer"));
-        Stat::of(v.iter().map(|s| s * 1e3).collect())
+        let mut time = |k: Intrinsics| {
+            let mut z = vec![0f32; (k.width * k.height) as usize];
+            let v = time_reps(reps, || camera.depth(&k, &s.pose, request, &mut z).expect("a valid camera and buffer"));
+            Stat::of(v.iter().map(|s| s * 1e3).collect())
+        };
+        (time(resized(s.intrinsics, 200, None)), time(resized(s.intrinsics, 640, Some(480))))
     };
-    let render_depth_ms_200 = depth_ms(nerf_view);
-    let render_depth_ms_200_residual = depth_ms(residual_view);
+    let (render_depth_ms_200, render_depth_ms_640x480) = depth_ms(nerf_view);
+    let (render_depth_ms_200_residual, render_depth_ms_640x480_residual) = depth_ms(residual_view);
 
     // Occupancy-grid updates of the NeRF at the default 128³: a warm-up update evaluates every
     // cell, a later one ¼ random + ¼ occupied cells (DESIGN §2.5), all through the
@@ -149,6 +160,8 @@ pub(super) fn measure(
         train_residual_rays_per_s,
         render_depth_ms_200,
         render_depth_ms_200_residual,
+        render_depth_ms_640x480,
+        render_depth_ms_640x480_residual,
         occupancy_update_ms_warmup,
         occupancy_update_ms,
     };

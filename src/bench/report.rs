@@ -129,6 +129,10 @@ figures! {
         render_depth_ms_200: Stat = "ms",
         /// The same of a residual model.
         render_depth_ms_200_residual: Stat = "ms",
+        /// One 640×480 threshold-depth view of the NeRF (a depth camera's size).
+        render_depth_ms_640x480: Stat = "ms",
+        /// The same of the residual model.
+        render_depth_ms_640x480_residual: Stat = "ms",
         /// An occupancy-grid update of the warm-up (every cell).
         occupancy_update_ms_warmup: Stat = "ms",
         /// A later update (¼ random + ¼ occupied cells).

@@ -84,8 +84,9 @@ commands:
          synthesise a workspace and a glass object, then compare as above (default out: rnerf-demo)
   bench  [--json] [--reps N] [--log2t N] [--threads N] [--model MODEL [--model MODEL] --data DIR]
          throughput of the hot kernels on this machine (one JSON object with --json); with
-         --model, render_depth_ms_200[_residual] time these trained models (a NeRF, a residual
-         model) from the first test view of DIR instead of the bench's short-trained ones
+         --model, render_depth_ms_200[_residual] and render_depth_ms_640x480[_residual] time
+         these trained models (a NeRF, a residual model) from the first test view of DIR (rescaled
+         to 200 wide, and to 640 wide cropped to 480 rows) instead of the bench's short-trained ones
   help   this text
 
 threshold depth: --m M is a density sigma >= M per unit of the dataset's coordinates (per metre;

@@ -6,16 +6,18 @@
 //! - [`ViewRenderer::depth`] — threshold depth only: evaluates only σ (the density networks'
 //!   first outputs, [`Model::chunk_density_only`], a chunk at a time on the worker's thread)
 //!   and stops each ray at its first solid sample (the robot's hot path), 4 samples per round;
-//! - [`ViewRenderer::full`] — colour, expected depth and threshold depth: the full field,
-//!   each ray stopped once it is opaque (`T < 1e-4`, as in training) and its threshold hit found;
-//!   segments of 16 samples doubling to 128.
+//! - [`ViewRenderer::full`] — colour, expected depth and threshold depth (and β): the training
+//!   step's chunk path a chunk at a time on the worker's thread — σ of every marched sample,
+//!   colour and β only of the samples a ray composites (before it turns opaque, `T < 1e-4`, as
+//!   in training) — each ray stopped once it is opaque and its threshold hit found; segments
+//!   of 16 samples doubling to 128.
 //!
 //! Outputs are **z-depth** (distance along the camera's viewing axis, in the dataset's unit —
 //! metres for ours), row-major from the top-left, NaN for a hole (no solid sample). Segmented
 //! marching visits exactly the samples of one-shot marching, so results equal compositing the
 //! whole ray (tested).
 
-use super::composite::RayAccumulator;
+use super::composite::{RayAccumulator, EARLY_STOP_TRANSMITTANCE};
 use super::depth::DensityThreshold;
 use super::{pixel_ray, Intrinsics, OccupancyGrid, Pose, Ray, RaySpan};
 use crate::field::model::Model;
@@ -32,12 +34,17 @@ const TILE_PIXELS: usize = 1024;
 /// Samples per ray per round of the depth-only path (rays stop at their first solid sample, so
 /// short segments waste little; a tile keeps the batch large).
 const DEPTH_SEGMENT: usize = 4;
-/// Samples per density evaluation of the depth-only path: one thread encodes and runs the
-/// density network on this many at a time, so encodings and activations stay in L1/L2.
-const DEPTH_CHUNK: usize = 256;
+/// Samples per evaluation on a worker's thread (both paths): encodings and activations of this
+/// many stay in L1/L2.
+const CHUNK: usize = 256;
 /// First segment length of the full path; doubles per round up to [`MAX_SEGMENT`].
 const FIRST_SEGMENT: usize = 16;
 const MAX_SEGMENT: usize = 128;
+
+/// Whether a ray with this transmittance is opaque ([`RayAccumulator::is_opaque`]'s test).
+fn opaque(transmittance: f32) -> bool {
+    transmittance < EARLY_STOP_TRANSMITTANCE
+}
 
 /// Per-ray marching state.
 #[derive(Clone, Copy)]
@@ -48,6 +55,9 @@ struct RayState {
     next: u32,
     taken: u32,
     hit: Option<f32>,
+    /// Transmittance after the samples evaluated so far (the full path's opaque test: the
+    /// accumulator's own, ahead of its colours).
+    transmittance: f32,
     acc: RayAccumulator,
 }
 
@@ -91,13 +101,18 @@ struct Worker<M: Model> {
     t: Vec<f32>,
     delta: Vec<f32>,
     positions: Vec<Vec3>,
-    dirs: Vec<Vec3>,
     sigma: Vec<f32>,
+    /// Of the current chunk of the full path: the composited rows, their directions and rays,
+    /// and their colours.
+    keep: Vec<u32>,
+    kept_dirs: Vec<Vec3>,
+    kept_ray: Vec<u32>,
     rgb: Vec<[f32; 3]>,
-    beta: Vec<f32>,
     beta_acc: Vec<f32>,
-    ctx: M::Context,
+    /// The depth-only path's scratch and the full path's chunk, apart: one path's smaller
+    /// buffers would otherwise drop the other's, and each frame after a switch would allocate.
     chunk: M::Chunk,
+    full_chunk: M::Chunk,
 }
 
 impl<M: Model> Default for Worker<M> {
@@ -109,13 +124,14 @@ impl<M: Model> Default for Worker<M> {
             t: Vec::new(),
             delta: Vec::new(),
             positions: Vec::new(),
-            dirs: Vec::new(),
             sigma: Vec::new(),
+            keep: Vec::new(),
+            kept_dirs: Vec::new(),
+            kept_ray: Vec::new(),
             rgb: Vec::new(),
-            beta: Vec::new(),
             beta_acc: Vec::new(),
-            ctx: M::Context::default(),
             chunk: M::Chunk::default(),
+            full_chunk: M::Chunk::default(),
         }
     }
 }
@@ -267,7 +283,15 @@ impl<M: Model> Worker<M> {
             if span.steps > 0 {
                 self.active.push(self.states.len() as u32);
             }
-            self.states.push(RayState { ray, span, next: 0, taken: 0, hit: None, acc: RayAccumulator::new() });
+            self.states.push(RayState {
+                ray,
+                span,
+                next: 0,
+                taken: 0,
+                hit: None,
+                transmittance: 1.0,
+                acc: RayAccumulator::new(),
+            });
         }
         let mut segment = if full { FIRST_SEGMENT } else { DEPTH_SEGMENT };
         while !self.active.is_empty() {
@@ -275,7 +299,6 @@ impl<M: Model> Worker<M> {
             self.t.clear();
             self.delta.clear();
             self.positions.clear();
-            self.dirs.clear();
             for &r in &self.active {
                 let s = &mut self.states[r as usize];
                 let start = self.t.len();
@@ -287,56 +310,30 @@ impl<M: Model> Worker<M> {
                 self.seg.push((start as u32, count as u32));
                 for &t in &self.t[start..] {
                     self.positions.push(s.ray.at(t));
-                    if full {
-                        self.dirs.push(s.ray.dir);
-                    }
                 }
             }
             let n = self.t.len();
             self.sigma.resize(n, 0.0);
-            if full && n > 0 {
-                self.rgb.resize(n, [0.0; 3]);
-                scene.model.forward(
-                    isa,
-                    scene.params,
-                    &self.positions,
-                    &self.dirs,
-                    &mut self.sigma,
-                    &mut self.rgb,
-                    &mut self.ctx,
-                );
-                scene.model.betas(&self.ctx, &mut self.beta);
+            if full {
+                self.composite_round(isa, scene, min_sigma);
             } else {
                 // On this thread, a chunk at a time, density networks' first outputs only.
-                for (p, s) in self.positions.chunks(DEPTH_CHUNK).zip(self.sigma.chunks_mut(DEPTH_CHUNK)) {
+                for (p, s) in self.positions.chunks(CHUNK).zip(self.sigma.chunks_mut(CHUNK)) {
                     scene.model.chunk_density_only(isa, scene.params, p, s, &mut self.chunk);
                 }
             }
-            let states = &mut self.states;
-            let beta_acc = &mut self.beta_acc;
-            let (t, delta, sigma, rgb, beta, seg) =
-                (&self.t, &self.delta, &self.sigma, &self.rgb, &self.beta, &self.seg);
+            let (states, t, sigma, seg) = (&mut self.states, &self.t, &self.sigma, &self.seg);
             let mut i = 0;
             self.active.retain(|&r| {
                 let s = &mut states[r as usize];
                 let (start, count) = seg[i];
                 i += 1;
-                for j in start as usize..(start + count) as usize {
-                    if s.hit.is_none() && sigma[j] >= min_sigma {
-                        s.hit = Some(t[j]);
-                    }
-                    if !full {
-                        if s.hit.is_some() {
-                            break;
-                        }
-                    } else if !s.acc.is_opaque() {
-                        let w = s.acc.push(sigma[j], delta[j], t[j], rgb[j]);
-                        if !beta.is_empty() {
-                            beta_acc[r as usize] += w * beta[j];
-                        }
-                    }
+                if !full && s.hit.is_none() {
+                    // The full path found its hits while compositing.
+                    let j = (start as usize..(start + count) as usize).find(|&j| sigma[j] >= min_sigma);
+                    s.hit = j.map(|j| t[j]);
                 }
-                let finished = if full { s.acc.is_opaque() && s.hit.is_some() } else { s.hit.is_some() };
+                let finished = if full { opaque(s.transmittance) && s.hit.is_some() } else { s.hit.is_some() };
                 let exhausted = s.next >= s.span.steps || s.taken >= max_samples || count == 0;
                 !(finished || exhausted)
             });
@@ -361,6 +358,66 @@ impl<M: Model> Worker<M> {
             if !out.beta.is_empty() {
                 out.beta[i] = self.beta_acc[i];
             }
+        }
+    }
+}
+
+impl<M: Model> Worker<M> {
+    /// The full path's work on one round's samples, [`CHUNK`] at a time on this thread (the
+    /// training step's chunk path): σ of every sample, the threshold hit, and colour (and β)
+    /// only of the samples a ray composites — those before it turns opaque (`T < 1e-4`); the
+    /// samples a segment marched past that point cost their density alone. The opaque point
+    /// is found from σ alone (each ray's `transmittance` multiplies the same factors the
+    /// accumulator does), so the composited samples are those of compositing the whole ray.
+    fn composite_round(&mut self, isa: Isa, scene: &Scene<'_, M>, min_sigma: f32) {
+        let n = self.t.len();
+        // The round's samples, ray after ray: the ray (index into `states`) of each.
+        let mut owner =
+            self.active.iter().zip(&self.seg).flat_map(|(&r, &(_, count))| std::iter::repeat_n(r, count as usize));
+        let mut from = 0;
+        while from < n {
+            let to = (from + CHUNK).min(n);
+            let chunk = &mut self.full_chunk;
+            scene.model.chunk_density(
+                isa,
+                scene.params,
+                0,
+                &self.positions[from..to],
+                &mut self.sigma[from..to],
+                chunk,
+            );
+            self.keep.clear();
+            self.kept_dirs.clear();
+            self.kept_ray.clear();
+            for j in from..to {
+                let r = owner.next().expect("every sample belongs to a ray");
+                let s = &mut self.states[r as usize];
+                let sigma = self.sigma[j];
+                if s.hit.is_none() && sigma >= min_sigma {
+                    s.hit = Some(self.t[j]);
+                }
+                if !opaque(s.transmittance) {
+                    s.transmittance *= (-sigma * self.delta[j]).exp();
+                    self.keep.push((j - from) as u32);
+                    self.kept_dirs.push(s.ray.dir);
+                    self.kept_ray.push(r);
+                }
+            }
+            let k = self.keep.len();
+            self.rgb.resize(k, [0.0; 3]);
+            if k > 0 {
+                scene.model.chunk_colour(isa, scene.params, &self.keep, &self.kept_dirs, &mut self.rgb, chunk);
+            }
+            let beta = scene.model.chunk_beta(chunk).map(|(b, _)| b);
+            for (i, (&row, &r)) in self.keep.iter().zip(&self.kept_ray).enumerate() {
+                let j = from + row as usize;
+                let s = &mut self.states[r as usize];
+                let w = s.acc.push(self.sigma[j], self.delta[j], self.t[j], self.rgb[i]);
+                if let Some(b) = beta {
+                    self.beta_acc[r as usize] += w * b[i];
+                }
+            }
+            from = to;
         }
     }
 }
