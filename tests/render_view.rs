@@ -2,16 +2,33 @@
 //! each ray in one go and compositing it whole gives (colour, expected and threshold z-depth),
 //! and the depth-only path gives the same threshold depth as the full one.
 
+use glam::Vec3;
 use residual_nerf::data::synth;
 use residual_nerf::encoding::HashGridConfig;
 use residual_nerf::field::NerfConfig;
 use residual_nerf::mlp::Activation;
 use residual_nerf::render::{
-    composite_ray, pixel_ray, threshold_depth, DensityThreshold, FullOutputs, OccupancyConfig, PackedSamples,
-    ViewRenderer,
+    composite_ray, pixel_ray, threshold_depth, DensityThreshold, FullOutputs, Intrinsics, OccupancyConfig,
+    OccupancyGrid, PackedSamples, Pose, Ray, ViewRenderer,
 };
 use residual_nerf::simd::Isa;
 use residual_nerf::train::trainer::{train_nerf, TrainConfig};
+
+/// Pixel `p`'s ray marched whole on `occupancy` in one go: the ray, its samples, their
+/// positions and directions (the reference the renderer's segments are checked against).
+fn whole_ray(
+    occupancy: &OccupancyGrid,
+    k: &Intrinsics,
+    pose: &Pose,
+    p: usize,
+) -> (Ray, PackedSamples, Vec<Vec3>, Vec<Vec3>) {
+    let ray = pixel_ray(k, pose, p as u32 % k.width, p as u32 / k.width);
+    let mut s = PackedSamples::default();
+    occupancy.march(ray.origin, ray.dir, &mut s);
+    let pos: Vec<Vec3> = s.t.iter().map(|&t| ray.at(t)).collect();
+    let dirs = vec![ray.dir; pos.len()];
+    (ray, s, pos, dirs)
+}
 
 #[test]
 fn segmented_rendering_equals_whole_ray_compositing() {
@@ -53,11 +70,7 @@ fn segmented_rendering_equals_whole_ray_compositing() {
             renderer.depth(isa, &(&nerf).into(), k, &v.pose, m, &mut dz);
             let mut hits = 0;
             for p in 0..n {
-                let ray = pixel_ray(k, &v.pose, p as u32 % k.width, p as u32 / k.width);
-                let mut s = PackedSamples::default();
-                nerf.occupancy.march(ray.origin, ray.dir, &mut s);
-                let pos: Vec<_> = s.t.iter().map(|&t| ray.at(t)).collect();
-                let dirs = vec![ray.dir; pos.len()];
+                let (ray, s, pos, dirs) = whole_ray(&nerf.occupancy, k, &v.pose, p);
                 let (mut raw, mut crgb) = (vec![0.0; pos.len()], vec![[0.0; 3]; pos.len()]);
                 let mut ctx = Default::default();
                 if !pos.is_empty() {
@@ -130,11 +143,7 @@ fn a_residual_models_full_render_equals_whole_ray_compositing() {
     ViewRenderer::new().full(isa, &scene, k, &v.pose, bgc, m, out);
     let (mut some_beta, mut hits) = (false, 0);
     for p in 0..n {
-        let ray = pixel_ray(k, &v.pose, p as u32 % k.width, p as u32 / k.width);
-        let mut s = PackedSamples::default();
-        model.occupancy.march(ray.origin, ray.dir, &mut s);
-        let pos: Vec<_> = s.t.iter().map(|&t| ray.at(t)).collect();
-        let dirs = vec![ray.dir; pos.len()];
+        let (ray, s, pos, dirs) = whole_ray(&model.occupancy, k, &v.pose, p);
         let (mut sigma, mut c, mut b) = (vec![0.0; pos.len()], vec![[0.0; 3]; pos.len()], Vec::new());
         let mut ctx = Default::default();
         if !pos.is_empty() {

@@ -18,6 +18,12 @@
 /// Transmittance below which marching stops.
 pub const EARLY_STOP_TRANSMITTANCE: f32 = 1e-4;
 
+/// The share of light a sample of density `sigma` and step `delta` lets through, `e^{−σδ}`.
+#[inline]
+pub fn transmitted(sigma: f32, delta: f32) -> f32 {
+    (-sigma * delta).exp()
+}
+
 /// The forward result of one ray.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RayComposite {
@@ -45,7 +51,7 @@ pub fn weights_from_density(sigma: &[f32], delta: &[f32], weights: &mut [f32]) -
             weights[i..].fill(0.0);
             break;
         }
-        let keep = (-sigma[i] * delta[i]).exp();
+        let keep = transmitted(sigma[i], delta[i]);
         weights[i] = t * (1.0 - keep);
         t *= keep;
     }
@@ -99,8 +105,14 @@ impl RayAccumulator {
     /// Adds the next sample (activated density and colour); returns its weight `w = T·α`.
     #[inline]
     pub fn push(&mut self, sigma: f32, delta: f32, t: f32, rgb: [f32; 3]) -> f32 {
+        self.push_kept(transmitted(sigma, delta), t, rgb)
+    }
+
+    /// [`RayAccumulator::push`] with the sample's transmitted share `keep = e^{−σδ}`
+    /// ([`transmitted`]) already computed: the same bits.
+    #[inline]
+    pub fn push_kept(&mut self, keep: f32, t: f32, rgb: [f32; 3]) -> f32 {
         let a = &mut self.acc;
-        let keep = (-sigma * delta).exp();
         let w = a.transmittance * (1.0 - keep);
         for c in 0..3 {
             a.rgb[c] += w * rgb[c];
@@ -143,7 +155,7 @@ pub fn composite_ray_backward(
     let mut trans = 1.0f32;
     let mut prefix = [0f32; 3];
     for i in 0..used {
-        let keep = (-sigma[i] * delta[i]).exp();
+        let keep = transmitted(sigma[i], delta[i]);
         let w = trans * (1.0 - keep);
         let t_next = trans * keep;
         let mut g = 0.0;

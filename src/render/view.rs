@@ -17,7 +17,7 @@
 //! marching visits exactly the samples of one-shot marching, so results equal compositing the
 //! whole ray (tested).
 
-use super::composite::{RayAccumulator, EARLY_STOP_TRANSMITTANCE};
+use super::composite::{transmitted, RayAccumulator, EARLY_STOP_TRANSMITTANCE};
 use super::depth::DensityThreshold;
 use super::{pixel_ray, Intrinsics, OccupancyGrid, Pose, Ray, RaySpan};
 use crate::field::model::Model;
@@ -56,7 +56,7 @@ struct RayState {
     taken: u32,
     hit: Option<f32>,
     /// Transmittance after the samples evaluated so far (the full path's opaque test: the
-    /// accumulator's own, ahead of its colours).
+    /// product of the same factors the accumulator takes, ahead of their colours).
     transmittance: f32,
     acc: RayAccumulator,
 }
@@ -102,11 +102,13 @@ struct Worker<M: Model> {
     delta: Vec<f32>,
     positions: Vec<Vec3>,
     sigma: Vec<f32>,
-    /// Of the current chunk of the full path: the composited rows, their directions and rays,
+    /// Of the current chunk of the full path: the composited rows, their directions, rays and
+    /// transmitted shares (`e^{−σδ}`, computed once for the opaque test and the compositing),
     /// and their colours.
     keep: Vec<u32>,
     kept_dirs: Vec<Vec3>,
     kept_ray: Vec<u32>,
+    kept_share: Vec<f32>,
     rgb: Vec<[f32; 3]>,
     beta_acc: Vec<f32>,
     /// The depth-only path's scratch and the full path's chunk, apart: one path's smaller
@@ -128,6 +130,7 @@ impl<M: Model> Default for Worker<M> {
             keep: Vec::new(),
             kept_dirs: Vec::new(),
             kept_ray: Vec::new(),
+            kept_share: Vec::new(),
             rgb: Vec::new(),
             beta_acc: Vec::new(),
             chunk: M::Chunk::default(),
@@ -367,8 +370,8 @@ impl<M: Model> Worker<M> {
     /// training step's chunk path): σ of every sample, the threshold hit, and colour (and β)
     /// only of the samples a ray composites — those before it turns opaque (`T < 1e-4`); the
     /// samples a segment marched past that point cost their density alone. The opaque point
-    /// is found from σ alone (each ray's `transmittance` multiplies the same factors the
-    /// accumulator does), so the composited samples are those of compositing the whole ray.
+    /// is found from σ alone (each ray's `transmittance` multiplies the factors the accumulator
+    /// then takes), so the composited samples are those of compositing the whole ray.
     fn composite_round(&mut self, isa: Isa, scene: &Scene<'_, M>, min_sigma: f32) {
         let n = self.t.len();
         // The round's samples, ray after ray: the ray (index into `states`) of each.
@@ -389,6 +392,7 @@ impl<M: Model> Worker<M> {
             self.keep.clear();
             self.kept_dirs.clear();
             self.kept_ray.clear();
+            self.kept_share.clear();
             for j in from..to {
                 let r = owner.next().expect("every sample belongs to a ray");
                 let s = &mut self.states[r as usize];
@@ -397,10 +401,12 @@ impl<M: Model> Worker<M> {
                     s.hit = Some(self.t[j]);
                 }
                 if !opaque(s.transmittance) {
-                    s.transmittance *= (-sigma * self.delta[j]).exp();
+                    let share = transmitted(sigma, self.delta[j]);
+                    s.transmittance *= share;
                     self.keep.push((j - from) as u32);
                     self.kept_dirs.push(s.ray.dir);
                     self.kept_ray.push(r);
+                    self.kept_share.push(share);
                 }
             }
             let k = self.keep.len();
@@ -410,9 +416,8 @@ impl<M: Model> Worker<M> {
             }
             let beta = scene.model.chunk_beta(chunk).map(|(b, _)| b);
             for (i, (&row, &r)) in self.keep.iter().zip(&self.kept_ray).enumerate() {
-                let j = from + row as usize;
                 let s = &mut self.states[r as usize];
-                let w = s.acc.push(self.sigma[j], self.delta[j], self.t[j], self.rgb[i]);
+                let w = s.acc.push_kept(self.kept_share[i], self.t[from + row as usize], self.rgb[i]);
                 if let Some(b) = beta {
                     self.beta_acc[r as usize] += w * b[i];
                 }
