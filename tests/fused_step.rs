@@ -175,3 +175,98 @@ fn the_residual_chunk_path_matches_the_batch_path() {
         }
     }
 }
+
+/// The ray pool's entry points ([`FrozenOutside`]): a chunk inside the change region run with
+/// the background's raw densities and colours handed in holds the same bits as one that
+/// evaluates them (σ, colours, and the gradients its backward accumulates), and a sample
+/// outside the region gets the chunk path's σ and colour from the background's raw outputs.
+#[test]
+fn the_frozen_outside_entry_points_give_the_chunk_path_bits() {
+    let isa = Isa::detect();
+    let mut rng = Rng::new(21);
+    let bg = nerf(&mut rng);
+    let own = MixnetEncoding::Own(HashGridConfig {
+        levels: 4,
+        log2_table_size: 8,
+        base_resolution: 4,
+        finest_resolution: 32,
+    });
+    for mixnet in [own, MixnetEncoding::Shared] {
+        let cfg = ResidualConfig {
+            residual: NerfConfig { grid: grid(), aabb: aabb() },
+            kind: MixKind::Mixnet(DensityMix::Raw),
+            mixnet,
+        };
+        // Half the box (x < 0) is the region.
+        let cells: Vec<u32> = (0..64).filter(|c| c % 4 < 2).collect();
+        let f = ResidualField::new(bg.clone(), cfg).with_region(ChangeRegion::from_cells(aabb(), 4, &cells).unwrap());
+        let mut p = f.init_params(&mut rng);
+        p.residual.grid.master.iter_mut().for_each(|v| *v = rng.uniform(-1.0, 1.0));
+        p.residual.grid.sync_mirror();
+        let last = *f.mixnet().mlp().layers().last().unwrap();
+        let w = p.mixnet.mlp.weights_mut();
+        for k in 0..last.k_real {
+            w[last.offset + k * last.o] = rng.uniform(-0.3, 0.3);
+        }
+        p.mixnet.mlp.sync();
+        let split = f.frozen_outside().expect("a field with a region is frozen outside it");
+        let n = 90;
+        let inside: Vec<Vec3> = (0..n)
+            .map(|_| Vec3::new(rng.uniform(-0.95, -0.05), rng.uniform(-0.95, 0.95), rng.uniform(-0.95, 0.95)))
+            .collect();
+        assert!(inside.iter().all(|&q| split.is_inside(q)));
+        let dirs: Vec<Vec3> =
+            (0..n).map(|_| Vec3::new(rng.uniform(-1.0, 1.0), rng.uniform(-1.0, 1.0), 0.5).normalize()).collect();
+        let keep: Vec<u32> = (0..n as u32).filter(|i| i % 4 != 2).collect();
+        let kd: Vec<Vec3> = keep.iter().map(|&i| dirs[i as usize]).collect();
+        let k = keep.len();
+        let d_sigma: Vec<f32> = (0..k).map(|_| rng.uniform(-1.0, 1.0)).collect();
+        let d_rgb: Vec<[f32; 3]> = (0..k).map(|_| std::array::from_fn(|_| rng.uniform(-1.0, 1.0))).collect();
+        // The background's raw outputs at the kept rows, as the pool keeps them.
+        let bgf = &f.background;
+        let mut fc = Default::default();
+        let mut s_bg = vec![0.0; n];
+        bgf.field.chunk_density(isa, &bgf.params, 0, &inside, &mut s_bg, &mut fc);
+        bgf.field.chunk_keep(&mut fc, &keep);
+        let mut c_bg = vec![[0.0; 3]; k];
+        bgf.field.chunk_colour(isa, &bgf.params, &kd, &mut c_bg, &mut fc);
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        let mut outs = Vec::new();
+        for given in [false, true] {
+            let mut chunk = Default::default();
+            let (mut sigma, mut rgb) = (vec![0.0; n], vec![[0.0; 3]; k]);
+            match given {
+                false => Model::chunk_density(&f, isa, &p, 0, &inside, &mut sigma, &mut chunk),
+                true => split.chunk_density_over(isa, &p, &inside, &s_bg, &mut sigma, &mut chunk),
+            }
+            match given {
+                false => Model::chunk_colour(&f, isa, &p, &keep, &kd, &mut rgb, &mut chunk),
+                true => split.chunk_colour_over(isa, &p, &keep, &kd, &c_bg, &mut rgb, &mut chunk),
+            }
+            let mut slot = Default::default();
+            Model::begin_slot(&f, &mut slot);
+            Model::chunk_backward(&f, isa, &p, &mut chunk, &d_sigma, &d_rgb, &mut slot);
+            let mut g = Model::zero_grads(&f);
+            Model::finish_step(&f, isa, &[slot], &mut g);
+            let mut pc = p.clone();
+            let grads: Vec<Vec<u32>> = Model::groups(&f, &mut pc, &g).iter().map(|g| bits(g.grad)).collect();
+            outs.push((bits(&sigma), bits(rgb.as_flattened()), grads));
+        }
+        assert!(outs[0] == outs[1], "{mixnet:?}: the background's values handed in change the chunk's bits");
+        // Outside the region: σ and colour from the background's raw outputs alone.
+        let outside: Vec<Vec3> = inside.iter().map(|q| Vec3::new(-q.x, q.y, q.z)).collect();
+        let mut chunk = Default::default();
+        let (mut sigma, mut rgb) = (vec![0.0; n], vec![[0.0; 3]; k]);
+        Model::chunk_density(&f, isa, &p, 0, &outside, &mut sigma, &mut chunk);
+        Model::chunk_colour(&f, isa, &p, &keep, &kd, &mut rgb, &mut chunk);
+        let mut s_out = vec![0.0; n];
+        bgf.field.chunk_density(isa, &bgf.params, 0, &outside, &mut s_out, &mut fc);
+        bgf.field.chunk_keep(&mut fc, &keep);
+        bgf.field.chunk_colour(isa, &bgf.params, &kd, &mut c_bg, &mut fc);
+        for (j, &r) in keep.iter().enumerate() {
+            let (s, c) = split.outside(s_out[r as usize], c_bg[j]);
+            assert_eq!(s.to_bits(), sigma[r as usize].to_bits(), "{mixnet:?}: σ outside at row {r}");
+            assert_eq!(bits(&c), bits(&rgb[j]), "{mixnet:?}: colour outside at row {r}");
+        }
+    }
+}

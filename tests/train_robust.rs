@@ -76,16 +76,21 @@ fn resume_matches<M: ModelFile>(
     views: &[View],
     dir: &Path,
     cfg: &TrainConfig,
+    start: Option<(M::Params, OccupancyGrid)>,
     unpack: impl Fn(LoadedModel) -> (M::Params, OccupancyGrid),
 ) where
     M::Params: PartialEq,
 {
     let isa = Isa::detect();
     let cfg = cfg.clone();
-    let mut straight = Trainer::new(isa, model, aabb, views, &cfg);
+    let new = || match start.clone() {
+        Some((params, occupancy)) => Trainer::starting_at(isa, model, views, &cfg, params, occupancy),
+        None => Trainer::new(isa, model, aabb, views, &cfg),
+    };
+    let mut straight = new();
     run_to_end(&mut straight);
 
-    let mut first = Trainer::new(isa, model, aabb, views, &cfg);
+    let mut first = new();
     for _ in 0..17 {
         first.step().unwrap();
     }
@@ -119,7 +124,7 @@ fn a_resumed_nerf_run_equals_an_uninterrupted_one() {
     let mut errors = train_config(40);
     errors.error_map = Some(0.5);
     for cfg in [train_config(40), gains, errors] {
-        resume_matches(&field, scene.aabb, &scene.views, &scratch("nerf"), &cfg, |m| match m {
+        resume_matches(&field, scene.aabb, &scene.views, &scratch("nerf"), &cfg, None, |m| match m {
             LoadedModel::Nerf(n) => (n.params, n.occupancy),
             LoadedModel::Residual(_) => panic!("saved a NeRF"),
         });
@@ -151,12 +156,66 @@ fn a_resumed_residual_run_equals_an_uninterrupted_one() {
         });
         aware.beta.unchanged = 0.02;
         for cfg in [train_config(40), aware] {
-            resume_matches(&field, scene.aabb, &scene.views, &scratch("residual"), &cfg, |m| match m {
+            resume_matches(&field, scene.aabb, &scene.views, &scratch("residual"), &cfg, None, |m| match m {
                 LoadedModel::Residual(r) => (r.params, r.occupancy),
                 LoadedModel::Nerf(_) => panic!("saved a residual model"),
             });
         }
     }
+}
+
+/// The background-aware method's start (warm-started, a change region pinned in a grid frozen
+/// outside it) with the ray pool on: the resumed run refills the pool at its step and ends
+/// with the same bits.
+#[test]
+fn a_resumed_run_with_the_ray_pool_equals_an_uninterrupted_one() {
+    use residual_nerf::geometry::ChangeRegion;
+    let scene = workspace::workspace(16, 8, 0.5, true);
+    let bg_field = NerfField::new(field_config(scene.aabb));
+    let mut rng = Rng::new(3);
+    let mut params = bg_field.init_params(&mut rng);
+    params.grid.master.iter_mut().for_each(|v| *v = rng.uniform(-1.0, 1.0));
+    params.grid.sync_mirror();
+    let occupancy = OccupancyGrid::new(scene.aabb, train_config(1).occupancy);
+    let background = Nerf { field: bg_field, params, occupancy };
+    let cells: Vec<u32> =
+        (5..11).flat_map(|z| (5..11).flat_map(move |y| (5..11).map(move |x| x + 16 * (y + 16 * z)))).collect();
+    let region = ChangeRegion::from_cells(scene.aabb, 16, &cells).unwrap();
+    let config = ResidualConfig {
+        residual: field_config(scene.aabb),
+        kind: MixKind::Mixnet(DensityMix::Raw),
+        mixnet: MixnetEncoding::Shared,
+    };
+    let field = ResidualField::new(background.clone(), config).with_region(region.clone());
+    let params = field.warm_params(&mut Rng::new(5)).expect("same architecture");
+    let mut occupancy = background.occupancy.clone();
+    occupancy.pin(&region);
+    occupancy.freeze_outside_pins();
+    let mut cfg = train_config(40);
+    let pixels = |step: u32| (0..8u32).flat_map(|v| (0..256).step_by(step as usize).map(move |p| (v, p))).collect();
+    cfg.focus = Some(Focus {
+        share: 0.5,
+        pixels: std::sync::Arc::new(pixels(7)),
+        reach: Some(std::sync::Arc::new(pixels(3))),
+        spared: None,
+    });
+    cfg.beta.unchanged = 0.02;
+    cfg.ray_pool = 4;
+    // The pool is on: it draws other rays than fresh sampling does.
+    let isa = Isa::detect();
+    let ends = |cfg: &TrainConfig| {
+        let mut t = Trainer::starting_at(isa, &field, &scene.views, cfg, params.clone(), occupancy.clone());
+        run_to_end(&mut t);
+        t.into_state().params
+    };
+    let mut fresh = cfg.clone();
+    fresh.ray_pool = 0;
+    assert!(ends(&cfg) != ends(&fresh), "the pooled run trained as the fresh one");
+    let start = Some((params, occupancy));
+    resume_matches(&field, scene.aabb, &scene.views, &scratch("pool"), &cfg, start, |m| match m {
+        LoadedModel::Residual(r) => (r.params, r.occupancy),
+        LoadedModel::Nerf(_) => panic!("saved a residual model"),
+    });
 }
 
 #[test]

@@ -137,6 +137,9 @@ pub struct TrainArgs {
     /// Lattice steps per training sample outside a residual model's change region
     /// (`--frozen-stride N`).
     pub frozen_stride: Option<u32>,
+    /// Times each pooled training ray of a residual model is drawn (`--ray-pool N`; 0 or 1:
+    /// every ray fresh).
+    pub ray_pool: Option<u32>,
     /// The identity prior's weight when a gain per training image is learned with the field
     /// (`--image-gains on`); `None`: off, the default.
     pub image_gains: Option<f32>,
@@ -189,6 +192,9 @@ pub struct CompareArgs {
     /// Lattice steps per training sample outside a residual model's change region
     /// (`--frozen-stride N`).
     pub frozen_stride: Option<u32>,
+    /// Times each pooled training ray of a residual model is drawn (`--ray-pool N`; 0 or 1:
+    /// every ray fresh).
+    pub ray_pool: Option<u32>,
     /// The identity prior's weight when a gain per training image is learned with the field
     /// (`--image-gains on`); `None`: off, the default.
     pub image_gains: Option<f32>,

@@ -49,6 +49,7 @@ pub(super) const FLAGS: &[Flag] = &[
     Flag { name: "focus-share", commands: &["train", "compare"], setting: true },
     Flag { name: "region-vote", commands: &["train", "compare"], setting: true },
     Flag { name: "frozen-stride", commands: &["train", "compare"], setting: true },
+    Flag { name: "ray-pool", commands: &["train", "compare"], setting: true },
     Flag { name: "image-gains", commands: &["train", "compare"], setting: true },
     Flag { name: "error-map", commands: &["train"], setting: true },
     Flag { name: "pixel-jitter", commands: &["train", "compare"], setting: true },
@@ -124,6 +125,7 @@ pub(super) struct Flags {
     pub(super) pose_registration: Option<bool>,
     pub(super) registration_passes: Option<u32>,
     pub(super) frozen_stride: Option<u32>,
+    pub(super) ray_pool: Option<u32>,
     /// `--image-gains on`: the identity prior's weight; off or not given: `None`.
     pub(super) image_gains: Option<f32>,
     /// `--error-map S`: the share of rays drawn by the error map; off or not given: `None`.
@@ -201,6 +203,12 @@ impl Flags {
                     return Err(err(format!("--frozen-stride: {n} is outside 1..=64")));
                 }
                 self.frozen_stride = Some(n);
+            }
+            "ray-pool" => {
+                let n: u32 = text(p, name)?.parse().ok().filter(|n| *n <= 1024).ok_or_else(|| {
+                    err("--ray-pool: expected a whole number of draws per ray in 0..=1024".to_string())
+                })?;
+                self.ray_pool = Some(n);
             }
             "region-vote" => {
                 let s = text(p, name)?;

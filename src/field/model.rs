@@ -146,6 +146,44 @@ pub trait Model: Sync {
     fn betas(&self, _ctx: &Self::Context, out: &mut Vec<f32>) {
         out.clear();
     }
+    /// The model as a frozen field outside a region, when it is one (a residual model with a
+    /// change region); `None` for the rest.
+    fn frozen_outside(&self) -> Option<&dyn FrozenOutside<Self::Params, Self::Chunk>> {
+        None
+    }
+}
+
+/// A model that is a frozen NeRF outside a region of the scene box: a residual model with a
+/// change region, where β = 0 outside. A sample outside the region has the frozen NeRF's
+/// density and colour whatever the parameters, so a training ray's samples there can be
+/// evaluated once and reused over many steps ([`crate::train::pool`]); the samples inside run
+/// through the chunk path with the frozen NeRF's outputs handed in instead of evaluated.
+pub trait FrozenOutside<P, C>: Sync {
+    /// The frozen NeRF.
+    fn frozen(&self) -> &crate::field::Nerf;
+    /// Whether `p` is inside the region (where the parameters matter).
+    fn is_inside(&self, p: Vec3) -> bool;
+    /// Activated density and colour of a sample outside the region from the frozen NeRF's raw
+    /// density `s` and pre-sigmoid colour `c`: the same bits as the model's chunk path gives it.
+    fn outside(&self, s: f32, c: [f32; 3]) -> (f32, [f32; 3]);
+    /// [`Model::chunk_density`] of a new chunk whose rows are all inside the region, with the
+    /// frozen NeRF's raw densities `frozen` (one per row) given instead of evaluated: the same
+    /// bits as evaluating them.
+    #[allow(clippy::too_many_arguments)]
+    fn chunk_density_over(&self, isa: Isa, p: &P, positions: &[Vec3], frozen: &[f32], sigma: &mut [f32], c: &mut C);
+    /// [`Model::chunk_colour`] after [`FrozenOutside::chunk_density_over`], with the frozen
+    /// NeRF's pre-sigmoid colours of the kept rows (`frozen`, one per kept row) given.
+    #[allow(clippy::too_many_arguments)]
+    fn chunk_colour_over(
+        &self,
+        isa: Isa,
+        p: &P,
+        keep: &[u32],
+        dirs: &[Vec3],
+        frozen: &[[f32; 3]],
+        rgb: &mut [[f32; 3]],
+        c: &mut C,
+    );
 }
 
 /// The NeRF's forward context plus the activated values backward differentiates through.
@@ -513,6 +551,10 @@ impl Model for ResidualField {
 
     fn betas(&self, ctx: &ResidualContext, out: &mut Vec<f32>) {
         ResidualField::betas(self, ctx, out);
+    }
+
+    fn frozen_outside(&self) -> Option<&dyn FrozenOutside<ResidualParams, ResidualChunk>> {
+        self.region().is_some().then_some(self as &dyn FrozenOutside<ResidualParams, ResidualChunk>)
     }
 
     fn after_step(&self, p: &mut ResidualParams) {

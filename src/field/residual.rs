@@ -5,6 +5,7 @@
 
 use super::mix::{mix_backward, mix_backward_rows, mix_forward, MixInput, MixKind, MixOutput};
 use super::mixnet::{Mixnet, MixnetChunk, MixnetContext, MixnetEncoding, MixnetGrads, MixnetParams};
+use super::model::FrozenOutside;
 use super::{FieldChunk, FieldContext, Nerf, NerfConfig, NerfField, NerfGrads, NerfParams, NetGrads};
 use crate::geometry::ChangeRegion;
 use crate::rng::Rng;
@@ -428,7 +429,7 @@ impl ResidualField {
         sigma: &mut [f32],
         c: &mut ResidualChunk,
     ) {
-        self.chunk_sigma(isa, params, positions, sigma, c, Some(from));
+        self.chunk_sigma(isa, params, positions, sigma, c, Some(from), None);
     }
 
     /// [`ResidualField::density`] on this thread, for a chunk (depth-only rendering): the
@@ -442,13 +443,15 @@ impl ResidualField {
         sigma: &mut [f32],
         c: &mut ResidualChunk,
     ) {
-        self.chunk_sigma(isa, params, positions, sigma, c, None);
+        self.chunk_sigma(isa, params, positions, sigma, c, None, None);
     }
 
     /// Mixed σ of `positions`: as the chunk's rows `from..` when `rows` is `Some(from)`,
     /// keeping everything the colour half needs; σ alone when `None`. The background is
-    /// evaluated on every row, the residual and the Mixnet only on the rows inside the change
-    /// region (all rows without one); outside it β = 0 and the mix is the background's.
+    /// evaluated on every row (or its raw densities taken from `frozen`, with `rows`), the
+    /// residual and the Mixnet only on the rows inside the change region (all rows without
+    /// one); outside it β = 0 and the mix is the background's.
+    #[allow(clippy::too_many_arguments)]
     fn chunk_sigma(
         &self,
         isa: Isa,
@@ -457,6 +460,7 @@ impl ResidualField {
         sigma: &mut [f32],
         c: &mut ResidualChunk,
         rows: Option<usize>,
+        frozen: Option<&[f32]>,
     ) {
         let n = positions.len();
         assert_eq!(sigma.len(), n, "residual: output length differs from the sample count");
@@ -481,7 +485,10 @@ impl ResidualField {
         let s_bg = &mut c.s_bg[from..];
         match rows {
             Some(_) => {
-                bg.field.chunk_density(isa, &bg.params, from, positions, s_bg, &mut c.bg);
+                match frozen {
+                    Some(given) => s_bg.copy_from_slice(given),
+                    None => bg.field.chunk_density(isa, &bg.params, from, positions, s_bg, &mut c.bg),
+                }
                 self.residual.chunk_density(isa, &params.residual, sub_from, &c.sub_pos, &mut c.sub_out, &mut c.res);
             }
             None => {
@@ -535,10 +542,29 @@ impl ResidualField {
         rgb: &mut [[f32; 3]],
         c: &mut ResidualChunk,
     ) {
+        self.chunk_colour_from(isa, params, keep, dirs, rgb, c, None);
+    }
+
+    /// [`ResidualField::chunk_colour`], the background's pre-sigmoid colours of the kept rows
+    /// taken from `frozen` when given (after a chunk whose background densities were given).
+    #[allow(clippy::too_many_arguments)]
+    fn chunk_colour_from(
+        &self,
+        isa: Isa,
+        params: &ResidualParams,
+        keep: &[u32],
+        dirs: &[Vec3],
+        rgb: &mut [[f32; 3]],
+        c: &mut ResidualChunk,
+        frozen: Option<&[[f32; 3]]>,
+    ) {
         let n = keep.len();
         assert!(dirs.len() == n && rgb.len() == n, "residual: buffers differ from the kept rows");
+        assert!(frozen.is_none_or(|f| f.len() == n), "residual: frozen colours differ from the kept rows");
         let bg = &self.background;
-        bg.field.chunk_keep(&mut c.bg, keep);
+        if frozen.is_none() {
+            bg.field.chunk_keep(&mut c.bg, keep);
+        }
         // The kept inside rows: their index among the inside rows (to keep in `res` and `mix`)
         // and among the kept rows (their new chunk row).
         c.sub_keep.clear();
@@ -565,7 +591,10 @@ impl ResidualField {
             v.truncate(n);
         }
         c.c_bg.resize(n, [0.0; 3]);
-        bg.field.chunk_colour(isa, &bg.params, dirs, &mut c.c_bg, &mut c.bg);
+        match frozen {
+            Some(given) => c.c_bg.copy_from_slice(given),
+            None => bg.field.chunk_colour(isa, &bg.params, dirs, &mut c.c_bg, &mut c.bg),
+        }
         c.sub_rgb.clear();
         c.sub_rgb.resize(c.inside.len(), [0.0; 3]);
         self.residual.chunk_colour(isa, &params.residual, &c.sub_pos, &mut c.sub_rgb, &mut c.res);
@@ -636,8 +665,57 @@ impl ResidualField {
         }
     }
 
+    /// The activated density and colour of a sample outside the change region, from the
+    /// background's raw outputs: the mix at β = 0 with the residual's inputs set to the
+    /// background's, exactly as [`ResidualField::chunk_density`] and
+    /// [`ResidualField::chunk_colour`] set them.
+    fn outside_sample(&self, s: f32, c: [f32; 3]) -> (f32, [f32; 3]) {
+        let o = mix_forward(self.kind, &MixInput { s_bg: s, c_bg: c, s_res: s, c_res: c, m: f32::NEG_INFINITY });
+        (o.sigma, o.rgb)
+    }
+
     /// The residual's features of the last forward when the Mixnet shares them.
     fn shared_features<'c>(&self, res: &'c FieldContext) -> Option<&'c [f32]> {
         (self.mixnet.grid().is_none()).then(|| res.features())
+    }
+}
+
+impl FrozenOutside<ResidualParams, ResidualChunk> for ResidualField {
+    fn frozen(&self) -> &Nerf {
+        &self.background
+    }
+
+    fn is_inside(&self, p: Vec3) -> bool {
+        self.region.as_ref().is_none_or(|r| r.contains(p))
+    }
+
+    fn outside(&self, s: f32, c: [f32; 3]) -> (f32, [f32; 3]) {
+        self.outside_sample(s, c)
+    }
+
+    fn chunk_density_over(
+        &self,
+        isa: Isa,
+        params: &ResidualParams,
+        positions: &[Vec3],
+        frozen: &[f32],
+        sigma: &mut [f32],
+        c: &mut ResidualChunk,
+    ) {
+        assert_eq!(frozen.len(), positions.len(), "residual: frozen densities differ from the sample count");
+        self.chunk_sigma(isa, params, positions, sigma, c, Some(0), Some(frozen));
+    }
+
+    fn chunk_colour_over(
+        &self,
+        isa: Isa,
+        params: &ResidualParams,
+        keep: &[u32],
+        dirs: &[Vec3],
+        frozen: &[[f32; 3]],
+        rgb: &mut [[f32; 3]],
+        c: &mut ResidualChunk,
+    ) {
+        self.chunk_colour_from(isa, params, keep, dirs, rgb, c, Some(frozen));
     }
 }

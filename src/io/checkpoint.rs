@@ -338,7 +338,7 @@ pub fn train_config_json(c: &TrainConfig) -> Value {
         "seed": c.seed, "distortion": c.distortion, "near_gradient_distance": c.near_gradient_distance,
         "beta_unchanged": c.beta.unchanged, "beta_entropy": c.beta.entropy, "beta_entropy_from": c.beta.entropy_from,
         "frozen_stride": c.frozen_stride, "image_gains": c.image_gains, "error_map": c.error_map,
-        "pixel_jitter": c.pixel_jitter,
+        "pixel_jitter": c.pixel_jitter, "ray_pool": c.ray_pool,
     })
 }
 
@@ -414,6 +414,11 @@ pub fn parse_train_config(v: &Value, occupancy: OccupancyConfig) -> Result<Train
         pixel_jitter: match v.get("pixel_jitter") {
             None => false,
             Some(b) => b.as_bool().ok_or("'pixel_jitter' is not true or false")?,
+        },
+        // Added later: absent means every ray fresh (how those runs were trained).
+        ray_pool: match v.get("ray_pool") {
+            None => 0,
+            Some(_) => uint(v, "ray_pool", 0, 1 << 16)? as u32,
         },
     })
 }

@@ -7,8 +7,11 @@
 
 use super::beta::beta_terms;
 use super::gains::gained_error;
+use super::pool::RayPool;
 use super::trainer::TrainConfig;
+use crate::field::model::FrozenOutside;
 use crate::field::model::Model;
+use crate::render::composite::{transmitted, EARLY_STOP_TRANSMITTANCE};
 use crate::render::distortion::distortion_backward;
 use crate::render::{composite_ray, composite_ray_backward, OccupancyGrid, PackedSamples, Ray, RayAccumulator};
 use crate::simd::Isa;
@@ -36,6 +39,8 @@ pub(super) struct StepRays {
     pub(super) view: Vec<u32>,
     /// Each ray's pixel in its image (`y · width + x`).
     pub(super) pixel: Vec<u32>,
+    /// Each ray's `(group slot, ray)` in the ray pool, when the step draws from one.
+    pub(super) pooled: Vec<(u32, u32)>,
 }
 
 /// Marched samples a chunk of the fused step holds at least (it takes whole rays, so it ends
@@ -69,6 +74,26 @@ pub(super) struct Worker<C> {
     pub(super) d_gain: Vec<[f32; 3]>,
     /// Each of the slot's rays' squared colour error, mean over the channels (the error map's input).
     pub(super) ray_errors: Vec<f32>,
+    /// The pooled path's per-unit buffers.
+    units: UnitScratch,
+}
+
+/// A chunk's pooled rays unit by unit ([`Worker::run_pooled`]): each ray's units up to its
+/// opaque point, and per kept row the background's values handed to the model.
+#[derive(Default)]
+struct UnitScratch {
+    frozen_s: Vec<f32>,
+    frozen_c: Vec<[f32; 3]>,
+    sigma: Vec<f32>,
+    delta: Vec<f32>,
+    t: Vec<f32>,
+    rgb: Vec<[f32; 3]>,
+    /// Each unit's kept row, or `u32::MAX` for a run.
+    kept: Vec<u32>,
+    d_sigma: Vec<f32>,
+    d_rgb: Vec<[f32; 3]>,
+    beta: Vec<f32>,
+    d_beta: Vec<f32>,
 }
 
 impl<C: Default> Default for Worker<C> {
@@ -90,6 +115,7 @@ impl<C: Default> Default for Worker<C> {
             n_kept: 0,
             d_gain: Vec::new(),
             ray_errors: Vec::new(),
+            units: UnitScratch::default(),
         }
     }
 }
@@ -133,6 +159,167 @@ impl<C> Worker<C> {
         }
     }
 
+    /// [`Worker::run`] for rays drawn from the ray pool ([`super::pool`]): each ray's runs
+    /// outside the change region are single units whose light and transmittance the pool
+    /// holds, and only its samples inside the region go through the model, with the
+    /// background's values handed in ([`FrozenOutside`]).
+    pub(super) fn run_pooled<M: Model<Chunk = C>>(
+        &mut self,
+        x: &StepInputs<M>,
+        split: &dyn FrozenOutside<M::Params, C>,
+        pool: &RayPool,
+        rays: &StepRays,
+        range: std::ops::Range<usize>,
+        slot: &mut M::Slot,
+    ) {
+        (self.loss, self.n_marched, self.n_kept) = (0.0, 0, 0);
+        self.d_gain.clear();
+        self.d_gain.resize(x.gains.len(), [0.0; 3]);
+        self.ray_errors.clear();
+        x.model.begin_slot(slot);
+        self.begin_chunk();
+        let mut first = range.start;
+        for i in range.clone() {
+            let (g, k) = rays.pooled[i];
+            let group = pool.group(g);
+            let r = &rays.rays[i];
+            for u in group.units_of(k as usize).iter().filter(|u| u.inside) {
+                self.positions.push(r.at(u.t));
+                self.units.frozen_s.push(u.s);
+            }
+            self.n_marched += group.rays[k as usize].marched as usize;
+            if self.positions.len() >= CHUNK_SAMPLES || i + 1 == range.end {
+                self.run_pooled_chunk(x, split, pool, rays, first..i + 1, slot);
+                self.begin_chunk();
+                first = i + 1;
+            }
+        }
+    }
+
+    /// A chunk of pooled rays: the density of their inside samples, each ray's units walked to
+    /// its opaque point, the colours of the kept samples, compositing, loss, and back into
+    /// `slot` (the runs' derivatives are dropped: nothing trainable made them).
+    fn run_pooled_chunk<M: Model<Chunk = C>>(
+        &mut self,
+        x: &StepInputs<M>,
+        split: &dyn FrozenOutside<M::Params, C>,
+        pool: &RayPool,
+        rays: &StepRays,
+        range: std::ops::Range<usize>,
+        slot: &mut M::Slot,
+    ) {
+        let (cfg, u) = (x.cfg, &mut self.units);
+        let n = self.positions.len();
+        self.sigma.resize(n, 0.0);
+        if n > 0 {
+            split.chunk_density_over(x.isa, x.params, &self.positions, &u.frozen_s, &mut self.sigma, &mut self.chunk);
+        }
+        for v in [&mut u.sigma, &mut u.delta, &mut u.t] {
+            v.clear();
+        }
+        u.rgb.clear();
+        u.kept.clear();
+        u.frozen_c.clear();
+        let mut row = 0;
+        for i in range.clone() {
+            let (g, k) = rays.pooled[i];
+            let start = u.sigma.len() as u32;
+            let mut transmittance = 1.0f32;
+            for unit in pool.group(g).units_of(k as usize) {
+                let opaque = transmittance < EARLY_STOP_TRANSMITTANCE;
+                let (sigma, kept) = match (unit.inside, opaque) {
+                    (true, false) => (self.sigma[row], self.keep.len() as u32),
+                    (false, false) => (unit.s, u32::MAX),
+                    (_, true) => {
+                        row += unit.inside as usize;
+                        continue;
+                    }
+                };
+                if unit.inside {
+                    self.keep.push(row as u32);
+                    self.dirs.push(rays.rays[i].dir);
+                    u.frozen_c.push(unit.c);
+                    row += 1;
+                }
+                transmittance *= transmitted(sigma, unit.delta);
+                u.sigma.push(sigma);
+                u.delta.push(unit.delta);
+                u.t.push(unit.t);
+                u.rgb.push(unit.c);
+                u.kept.push(kept);
+            }
+            self.kept.push((start, u.sigma.len() as u32 - start));
+        }
+        let k = self.keep.len();
+        self.n_kept += k;
+        self.rgb.resize(k, [0.0; 3]);
+        if k > 0 {
+            split.chunk_colour_over(
+                x.isa,
+                x.params,
+                &self.keep,
+                &self.dirs,
+                &u.frozen_c,
+                &mut self.rgb,
+                &mut self.chunk,
+            );
+        }
+        for (c, &kept) in u.rgb.iter_mut().zip(&u.kept) {
+            if kept != u32::MAX {
+                *c = self.rgb[kept as usize];
+            }
+        }
+        self.d_sigma.clear();
+        self.d_sigma.resize(k, 0.0);
+        self.d_rgb.clear();
+        self.d_rgb.resize(k, [0.0; 3]);
+        let scale = 2.0 / (3 * cfg.rays_per_step) as f32;
+        let mut beta = match cfg.beta.is_on() && k > 0 {
+            true => x.model.chunk_beta(&mut self.chunk),
+            false => None,
+        };
+        for (ray, &(s0, count)) in range.zip(&self.kept) {
+            let r = s0 as usize..(s0 + count) as usize;
+            let (sigma, delta, t) = (&u.sigma[r.clone()], &u.delta[r.clone()], &u.t[r.clone()]);
+            let c = composite_ray(sigma, delta, t, &u.rgb[r.clone()], rays.backgrounds[ray]);
+            let (err, d_colour) = match x.gains.get(rays.view[ray] as usize) {
+                Some(&g) => gained_error(c.rgb, rays.targets[ray], g, scale, &mut self.d_gain[rays.view[ray] as usize]),
+                None => {
+                    let err: [f32; 3] = std::array::from_fn(|i| c.rgb[i] - rays.targets[ray][i]);
+                    (err, err.map(|e| e * scale))
+                }
+            };
+            let sq: f32 = err.iter().map(|e| e * e).sum();
+            self.ray_errors.push(sq / 3.0);
+            self.loss += err.iter().map(|e| (e * e) as f64).sum::<f64>();
+            u.d_sigma.resize(count as usize, 0.0);
+            u.d_rgb.resize(count as usize, [0.0; 3]);
+            composite_ray_backward(sigma, delta, &u.rgb[r.clone()], &c, d_colour, &mut u.d_sigma, &mut u.d_rgb);
+            let kept = &u.kept[r.clone()];
+            for (j, &kr) in kept.iter().enumerate().filter(|(_, &kr)| kr != u32::MAX) {
+                self.d_sigma[kr as usize] = u.d_sigma[j];
+                self.d_rgb[kr as usize] = u.d_rgb[j];
+            }
+            if let Some((beta, d_beta)) = &mut beta {
+                let unchanged = if rays.unchanged[ray] { cfg.beta.unchanged } else { 0.0 } / cfg.rays_per_step as f32;
+                let entropy = x.entropy / cfg.rays_per_step as f32;
+                if unchanged > 0.0 || entropy > 0.0 {
+                    u.beta.clear();
+                    u.beta.extend(kept.iter().map(|&kr| if kr == u32::MAX { 0.0 } else { beta[kr as usize] }));
+                    u.d_beta.clear();
+                    u.d_beta.resize(kept.len(), 0.0);
+                    beta_terms(sigma, delta, &u.beta, unchanged, entropy, &mut u.d_beta);
+                    for (&kr, &d) in kept.iter().zip(&u.d_beta).filter(|(&kr, _)| kr != u32::MAX) {
+                        d_beta[kr as usize] += d;
+                    }
+                }
+            }
+        }
+        if k > 0 {
+            x.model.chunk_backward(x.isa, x.params, &mut self.chunk, &self.d_sigma, &self.d_rgb, slot);
+        }
+    }
+
     /// Empties the chunk's buffers.
     fn begin_chunk(&mut self) {
         self.marched.clear();
@@ -141,6 +328,7 @@ impl<C> Worker<C> {
         self.sigma.clear();
         self.keep.clear();
         self.kept.clear();
+        self.units.frozen_s.clear();
     }
 
     /// Adds a ray to the chunk: marches it segment by segment ([`RAY_SEGMENT`] samples,

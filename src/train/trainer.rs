@@ -23,6 +23,7 @@
 //! gains when [`TrainConfig::image_gains`] is on, whose gradients the slots also reduce in slot
 //! order), so a run resumed from a saved state continues bit-exactly.
 
+use super::pool::{PoolInputs, RayPool};
 pub use super::step::{scale_near_gradients, CHUNK_SAMPLES, RAY_SEGMENT};
 use super::step::{StepInputs, StepRays, Worker};
 use crate::data::View;
@@ -100,6 +101,13 @@ pub struct TrainConfig {
     /// behind it. On the dev scenes it does not change the depth (docs/DECISIONS.md, "Most of
     /// it is a one-pixel ring around the glass"). Defaults to [`PIXEL_JITTER`].
     pub pixel_jitter: bool,
+    /// Times each training ray is drawn, on average, when the model is a frozen field outside
+    /// a region whose occupancy grid is frozen there (the default residual method): a ray's
+    /// samples outside the region are evaluated once and its rays are drawn from a pool
+    /// ([`crate::train::pool`]); 0 or 1 draws every ray fresh. Needs no distortion loss, no
+    /// near-camera gradient scaling and no error map (otherwise every ray is fresh). Defaults
+    /// to [`RAY_POOL`].
+    pub ray_pool: u32,
 }
 
 /// A share of each step's rays drawn uniformly from a fixed list of pixels.
@@ -131,6 +139,10 @@ pub const FROZEN_STRIDE: u32 = 1;
 /// Default of [`TrainConfig::pixel_jitter`]: off, measured on the dev scenes (docs/DECISIONS.md,
 /// "Most of it is a one-pixel ring around the glass").
 pub const PIXEL_JITTER: bool = false;
+
+/// Default of [`TrainConfig::ray_pool`]: every ray fresh. Reusing rays costs more depth than
+/// drawing fewer fresh ones (`--rays 512`) at the same time (docs/DECISIONS.md, "The ray pool").
+pub const RAY_POOL: u32 = 0;
 
 /// Default training steps: with [`TRAIN_RAYS`], about 2–3 minutes for 100 views of 200×200 on
 /// a 2-core machine (BENCHMARKS.md; docs/DECISIONS.md, "The engine").
@@ -168,6 +180,7 @@ impl TrainConfig {
             image_gains: None,
             error_map: None,
             pixel_jitter: PIXEL_JITTER,
+            ray_pool: RAY_POOL,
         }
     }
 }
@@ -336,6 +349,8 @@ pub struct Trainer<'a, M: Model> {
     changed: Vec<Vec<u64>>,
     /// The error map's tiles and its sampler (used when [`TrainConfig::error_map`] is on).
     error_draws: (TileLayout, ErrorSampler),
+    /// The ray pool, once a step draws from it ([`TrainConfig::ray_pool`]).
+    pool: Option<RayPool>,
     bad_in_a_row: u32,
     empty_in_a_row: u32,
 }
@@ -459,6 +474,7 @@ impl<'a, M: Model> Trainer<'a, M> {
             ctx,
             changed,
             error_draws: (tiles, ErrorSampler::default()),
+            pool: None,
             bad_in_a_row: 0,
             empty_in_a_row: 0,
         })
@@ -510,7 +526,18 @@ impl<'a, M: Model> Trainer<'a, M> {
     fn step_inner(&mut self) -> Result<StepStats, TrainError> {
         let (isa, model, views, cfg) = (self.isa, self.model, self.views, self.cfg);
         let Trainer {
-            state, grads, rays, workers, slots, ctx, changed, error_draws, bad_in_a_row, empty_in_a_row, ..
+            state,
+            grads,
+            rays,
+            workers,
+            slots,
+            ctx,
+            changed,
+            error_draws,
+            pool,
+            bad_in_a_row,
+            empty_in_a_row,
+            ..
         } = self;
         let (tiles, sampler) = error_draws;
         let step = state.step;
@@ -522,7 +549,8 @@ impl<'a, M: Model> Trainer<'a, M> {
         }
         // 1. Rays: the focus share from the focus pixels, then the error map's share by the
         //    training error, the rest uniform over the reach pixels when there are some, else
-        //    over all pixels of all views.
+        //    over all pixels of all views; or, with the ray pool, drawn from the pool (whose
+        //    fresh rays are drawn the same way).
         let mut srng = Rng::stream(cfg.seed, step as u64);
         rays.rays.clear();
         rays.targets.clear();
@@ -530,6 +558,7 @@ impl<'a, M: Model> Trainer<'a, M> {
         rays.unchanged.clear();
         rays.view.clear();
         rays.pixel.clear();
+        rays.pooled.clear();
         let focused = match &cfg.focus {
             Some(f) if !f.pixels.is_empty() => (f.share.clamp(0.0, 1.0) * cfg.rays_per_step as f32).round() as usize,
             _ => 0,
@@ -541,30 +570,39 @@ impl<'a, M: Model> Trainer<'a, M> {
             }
             _ => 0,
         };
-        let reach = cfg.focus.as_ref().and_then(|f| f.reach.as_deref()).filter(|r| !r.is_empty());
-        for r in 0..cfg.rays_per_step {
-            let (vi, p) = match (&cfg.focus, reach) {
-                (Some(f), _) if r < focused => f.pixels[srng.below(f.pixels.len() as u64) as usize],
-                _ if r < focused + errored => tiles.draw_pixel(sampler.draw(&mut srng), &mut srng),
-                (_, Some(reach)) => reach[srng.below(reach.len() as u64) as usize],
-                _ => {
-                    let vi = srng.below(views.len() as u64) as u32;
-                    let v = &views[vi as usize];
-                    (vi, srng.below(v.intrinsics.width as u64 * v.intrinsics.height as u64) as u32)
-                }
-            };
+        let split = model.frozen_outside().filter(|_| {
+            cfg.ray_pool > 1
+                && occupancy.is_frozen_outside_pins()
+                && cfg.distortion == 0.0
+                && cfg.near_gradient_distance == 0.0
+                && cfg.error_map.is_none()
+        });
+        if let Some(split) = split {
+            let pool = pool.get_or_insert_with(|| RayPool::new(cfg.rays_per_step, focused, cfg.ray_pool));
+            let occupancy = &*occupancy;
+            pool.refresh(step, &PoolInputs { isa, split, occupancy, views, cfg, changed });
+            pool.draw(step, cfg.rays_per_step, &mut srng, &mut rays.pooled);
+            for &(g, k) in &rays.pooled {
+                let r = &pool.group(g).rays[k as usize];
+                rays.rays.push(r.ray);
+                rays.targets.push(r.target);
+                rays.view.push(r.view);
+                rays.pixel.push(r.pixel);
+                rays.unchanged.push(r.unchanged);
+                rays.backgrounds.push(match cfg.random_background {
+                    true => std::array::from_fn(|_| srng.uniform(0.0, 1.0)),
+                    false => cfg.background,
+                });
+            }
+        }
+        for r in (0..cfg.rays_per_step).filter(|_| split.is_none()) {
+            let errors = Some((&*tiles, &*sampler));
+            let (vi, p) = draw_pixel(views, cfg.focus.as_ref(), focused, errored, r, &mut srng, errors);
             let v = &views[vi as usize];
             rays.view.push(vi);
             rays.pixel.push(p);
             rays.unchanged.push(changed.get(vi as usize).is_some_and(|b| b[p as usize / 64] >> (p % 64) & 1 == 0));
-            let w = v.intrinsics.width;
-            rays.rays.push(match cfg.pixel_jitter {
-                true => {
-                    let (x, y) = ((p % w) as f32 + srng.uniform(0.0, 1.0), (p / w) as f32 + srng.uniform(0.0, 1.0));
-                    image_ray(&v.intrinsics, &v.pose, x, y)
-                }
-                false => pixel_ray(&v.intrinsics, &v.pose, p % w, p / w),
-            });
+            rays.rays.push(ray_through(v, p, cfg.pixel_jitter, &mut srng));
             rays.targets.push(v.rgb[p as usize]);
             rays.backgrounds.push(match cfg.random_background {
                 true => std::array::from_fn(|_| srng.uniform(0.0, 1.0)),
@@ -580,11 +618,13 @@ impl<'a, M: Model> Trainer<'a, M> {
         let gains = state.gains.as_ref().map(ImageGains::gains).unwrap_or_default();
         let inputs = StepInputs { isa, model, params: &*params, occupancy: &*occupancy, cfg, entropy, gains: &gains };
         let rays = &*rays;
-        workers
-            .par_iter_mut()
-            .zip(slots.par_iter_mut())
-            .enumerate()
-            .for_each(|(s, (w, slot))| w.run(&inputs, rays, slot_range(rays.rays.len(), s), slot));
+        workers.par_iter_mut().zip(slots.par_iter_mut()).enumerate().for_each(|(s, (w, slot))| {
+            let range = slot_range(rays.rays.len(), s);
+            match (split, pool.as_ref()) {
+                (Some(split), Some(pool)) => w.run_pooled(&inputs, split, pool, rays, range, slot),
+                _ => w.run(&inputs, rays, range, slot),
+            }
+        });
         let loss: f64 = workers.iter().map(|w| w.loss).sum();
         let marched: usize = workers.iter().map(|w| w.n_marched).sum();
         let n: usize = workers.iter().map(|w| w.n_kept).sum();
@@ -639,6 +679,45 @@ impl<'a, M: Model> Trainer<'a, M> {
             occupancy: occupancy.occupancy(),
             skipped: state.skipped,
         })
+    }
+}
+
+/// The pixel `(view, y · width + x)` of a step's ray `r`: the first `focused` rays from the
+/// focus pixels, the next `errored` by the error map (`errors`, required when `errored > 0`),
+/// the rest uniform over the reach pixels when there are some, else over all pixels of all
+/// views.
+pub(super) fn draw_pixel(
+    views: &[View],
+    focus: Option<&Focus>,
+    focused: usize,
+    errored: usize,
+    r: usize,
+    rng: &mut Rng,
+    errors: Option<(&TileLayout, &ErrorSampler)>,
+) -> (u32, u32) {
+    let reach = focus.and_then(|f| f.reach.as_deref()).filter(|r| !r.is_empty());
+    match (focus, reach, errors) {
+        (Some(f), _, _) if r < focused => f.pixels[rng.below(f.pixels.len() as u64) as usize],
+        (_, _, Some((tiles, sampler))) if r < focused + errored => tiles.draw_pixel(sampler.draw(rng), rng),
+        (_, Some(reach), _) => reach[rng.below(reach.len() as u64) as usize],
+        _ => {
+            let vi = rng.below(views.len() as u64) as u32;
+            let v = &views[vi as usize];
+            (vi, rng.below(v.intrinsics.width as u64 * v.intrinsics.height as u64) as u32)
+        }
+    }
+}
+
+/// The training ray of pixel `p` of `v`: through its centre, or through a uniform random point
+/// of it with `jitter` ([`TrainConfig::pixel_jitter`]).
+pub(super) fn ray_through(v: &View, p: u32, jitter: bool, rng: &mut Rng) -> crate::geometry::camera::Ray {
+    let w = v.intrinsics.width;
+    match jitter {
+        true => {
+            let (x, y) = ((p % w) as f32 + rng.uniform(0.0, 1.0), (p / w) as f32 + rng.uniform(0.0, 1.0));
+            image_ray(&v.intrinsics, &v.pose, x, y)
+        }
+        false => pixel_ray(&v.intrinsics, &v.pose, p % w, p / w),
     }
 }
 

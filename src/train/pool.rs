@@ -1,0 +1,476 @@
+//! The ray pool of a residual model's scene phase ([`TrainConfig::ray_pool`]).
+//!
+//! Outside its change region a residual model is its frozen background, whatever its
+//! parameters ([`FrozenOutside`]), and its occupancy grid is frozen there
+//! ([`crate::geometry::OccupancyGrid::freeze_outside_pins`]) with the region's cells pinned
+//! occupied: a training ray marches the same samples at every step, and those outside the
+//! region have the same density and colour at every step. Evaluating them at every step is
+//! most of a step's cost (the background runs on ~180 samples a ray, the residual and the Mixnet
+//! on the few inside the region; docs/DECISIONS.md, "Where a residual step's time goes").
+//!
+//! So the trainer evaluates a ray's background once and draws it several times. A pooled ray
+//! keeps, in order along it:
+//! - each **run** of consecutive samples outside the region, composited into one unit: its
+//!   transmittance `T_run` (stored as the density `−ln T_run` of a unit step) and its colour
+//!   `C_run / (1 − T_run)`, so compositing the unit gives the run's light and transmittance
+//!   (the same value as compositing its samples, up to rounding);
+//! - each sample **inside** the region with its distance, step and the background's raw
+//!   density and pre-sigmoid colour there (the mix needs them; the background is not
+//!   evaluated again).
+//!
+//! A ray is kept up to the point where the transmittance of its runs alone falls below
+//! [`EARLY_STOP_TRANSMITTANCE`]: the samples inside can only lower the transmittance further,
+//! so compositing at any parameters stops before that point.
+//!
+//! Each step adds one **group**: its own rays of the focus pixels (the changed pixels, drawn
+//! fresh and used by that step only) and `(rays_per_step − focus) / reuse` rays of the reach
+//! pixels (the pixels whose ray crosses the region), drawn as the trainer draws them. The step
+//! takes its group's focus rays and draws the rest uniformly from the reach rays of the groups
+//! of the last [`POOL_STEPS`] steps; the first step starts with [`POOL_START_STEPS`] steps'
+//! worth of reach rays. A reach ray is then drawn `reuse` times on average. Group `j`'s rays
+//! come from `Rng::stream(seed ^ POOL_KEY, j)`, so the pool at step `s` is a function of the
+//! seed and `s` alone: a run resumed from a checkpoint refills it and continues bit-exactly,
+//! and the groups are filled in [`SLOTS`] fixed parts, the same bits on any thread count.
+//!
+//! Measured on the dev scenes it is off by default: a reused ray teaches less than a fresh one,
+//! and at the same training time fewer fresh rays per step (`--rays 512`) give better depth
+//! (docs/DECISIONS.md, "The ray pool").
+
+use super::step::RAY_SEGMENT;
+use super::trainer::{draw_pixel, ray_through, TrainConfig};
+use crate::data::View;
+use crate::field::model::FrozenOutside;
+use crate::field::FieldChunk;
+use crate::geometry::camera::Ray;
+use crate::render::composite::{transmitted, RayAccumulator, EARLY_STOP_TRANSMITTANCE};
+use crate::render::OccupancyGrid;
+use crate::rng::Rng;
+use crate::simd::Isa;
+use crate::slots::{slot_range, SLOTS};
+use glam::Vec3;
+use rayon::prelude::*;
+
+/// Steps a group of fresh rays stays in the pool.
+pub const POOL_STEPS: u64 = 128;
+
+/// Steps' worth of rays the pool holds at step 0.
+pub const POOL_START_STEPS: u64 = 4;
+
+/// Mixed into the seed of the pool's ray streams (apart from the steps' own streams).
+const POOL_KEY: u64 = 0x9001_c0de;
+
+/// One unit along a pooled ray.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Unit {
+    /// Distance along the ray: the sample's, or the middle of a run.
+    pub t: f32,
+    /// The sample's step; 1 for a run.
+    pub delta: f32,
+    /// Inside: the background's raw density. A run: its density over a unit step, `−ln T_run`.
+    pub s: f32,
+    /// Inside: the background's pre-sigmoid colour. A run: its activated colour.
+    pub c: [f32; 3],
+    /// Whether this is a sample inside the region (else a run outside it).
+    pub inside: bool,
+}
+
+/// A pooled ray: where it comes from, what it must see, and its units.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct PooledRay {
+    pub ray: Ray,
+    pub target: [f32; 3],
+    pub view: u32,
+    pub pixel: u32,
+    pub unchanged: bool,
+    /// `(start, count)` of its units in its group.
+    pub units: (u32, u32),
+    /// Samples the grid let through up to its cut (for the step's statistics).
+    pub marched: u32,
+}
+
+/// The rays one step added.
+#[derive(Default)]
+pub(super) struct Group {
+    id: Option<u64>,
+    /// Its first rays are this many fresh rays of the focus pixels.
+    focus: usize,
+    pub rays: Vec<PooledRay>,
+    pub units: Vec<Unit>,
+}
+
+impl Group {
+    /// The units of ray `i`.
+    pub fn units_of(&self, i: usize) -> &[Unit] {
+        let (s, n) = self.rays[i].units;
+        &self.units[s as usize..(s + n) as usize]
+    }
+}
+
+/// The pool: [`POOL_STEPS`] + the first step's groups at most, group `j` in slot `j mod` that.
+pub(super) struct RayPool {
+    /// Fresh rays of the focus pixels in each step's group (drawn by that step only).
+    focus: usize,
+    /// Rays of the reach pixels in each group (drawn from the pool).
+    reach: usize,
+    start_groups: u64,
+    groups: Vec<Group>,
+    fillers: Vec<Filler>,
+}
+
+impl RayPool {
+    /// A pool for steps of `rays_per_step` rays, the first `focused` of them from the focus
+    /// pixels (always fresh), each of the rest drawn `reuse` times on average.
+    pub fn new(rays_per_step: usize, focused: usize, reuse: u32) -> RayPool {
+        let rest = rays_per_step.saturating_sub(focused);
+        let reach = (rest / reuse.max(1) as usize).max(1);
+        let start_groups = (POOL_START_STEPS as usize * rest).div_ceil(reach) as u64;
+        let slots = (POOL_STEPS + start_groups) as usize;
+        RayPool {
+            focus: focused.min(rays_per_step),
+            reach,
+            start_groups,
+            groups: (0..slots).map(|_| Group::default()).collect(),
+            fillers: (0..SLOTS).map(|_| Filler::default()).collect(),
+        }
+    }
+
+    /// The ids of the groups in the pool at `step` (the last one is `step`'s own).
+    fn window(&self, step: u32) -> std::ops::Range<u64> {
+        let hi = self.start_groups + step as u64 + 1;
+        hi.saturating_sub(self.groups.len() as u64)..hi
+    }
+
+    /// Fills every group of `step`'s window that is not in the pool yet (at a fresh start the
+    /// first groups, at a resumed one all of them, else the step's new group).
+    pub fn refresh<P, C>(&mut self, step: u32, x: &PoolInputs<P, C>) {
+        let n = self.groups.len() as u64;
+        for id in self.window(step) {
+            let slot = (id % n) as usize;
+            if self.groups[slot].id != Some(id) {
+                self.fill(slot, id, x);
+            }
+        }
+    }
+
+    /// `step`'s rays as `(group slot, ray)` pairs: its own group's focus rays, then `count`
+    /// less those drawn uniformly from the reach rays of the window's groups.
+    pub fn draw(&self, step: u32, count: usize, rng: &mut Rng, out: &mut Vec<(u32, u32)>) {
+        let w = self.window(step);
+        let n = self.groups.len() as u64;
+        let own = ((w.end - 1) % n) as u32;
+        let focus = self.groups[own as usize].focus;
+        let total = (w.end - w.start) * self.reach as u64;
+        out.clear();
+        out.extend((0..focus.min(count) as u32).map(|i| (own, i)));
+        out.extend((0..count.saturating_sub(focus)).map(|_| {
+            let u = rng.below(total);
+            let slot = ((w.start + u / self.reach as u64) % n) as u32;
+            (slot, (self.groups[slot as usize].focus as u64 + u % self.reach as u64) as u32)
+        }));
+    }
+
+    /// Group slot `slot`.
+    pub fn group(&self, slot: u32) -> &Group {
+        &self.groups[slot as usize]
+    }
+
+    /// Draws group `id`'s rays (the focus rays of its step, none for the first step's extra
+    /// groups, then the reach rays) and evaluates their background, in [`SLOTS`] parts.
+    fn fill<P, C>(&mut self, slot: usize, id: u64, x: &PoolInputs<P, C>) {
+        let mut rng = Rng::stream(x.cfg.seed ^ POOL_KEY, id);
+        let focus = if id + 1 >= self.start_groups { self.focus } else { 0 };
+        let f = focus + self.reach;
+        let drawn: Vec<(u32, u32, Ray)> = (0..f)
+            .map(|r| {
+                let (v, p) = draw_pixel(x.views, x.cfg.focus.as_ref(), focus, 0, r, &mut rng, None);
+                (v, p, ray_through(&x.views[v as usize], p, x.cfg.pixel_jitter, &mut rng))
+            })
+            .collect();
+        self.fillers.par_iter_mut().enumerate().for_each(|(s, filler)| {
+            filler.rays.clear();
+            filler.units.clear();
+            for &(v, p, ray) in &drawn[slot_range(f, s)] {
+                filler.add(x, v, p, ray);
+            }
+        });
+        let g = &mut self.groups[slot];
+        g.rays.clear();
+        g.units.clear();
+        for filler in &self.fillers {
+            let offset = g.units.len() as u32;
+            g.rays.extend(filler.rays.iter().map(|r| PooledRay { units: (r.units.0 + offset, r.units.1), ..*r }));
+            g.units.extend_from_slice(&filler.units);
+        }
+        g.focus = focus;
+        g.id = Some(id);
+    }
+}
+
+/// What filling a group reads.
+pub(super) struct PoolInputs<'a, P, C> {
+    pub isa: Isa,
+    pub split: &'a dyn FrozenOutside<P, C>,
+    pub occupancy: &'a OccupancyGrid,
+    pub views: &'a [View],
+    pub cfg: &'a TrainConfig,
+    /// Per view, the bitset of the pixels the β penalty spares.
+    pub changed: &'a [Vec<u64>],
+}
+
+/// One part's scratch and output while a group fills.
+#[derive(Default)]
+struct Filler {
+    chunk: FieldChunk,
+    t: Vec<f32>,
+    delta: Vec<f32>,
+    positions: Vec<Vec3>,
+    raw: Vec<f32>,
+    keep: Vec<u32>,
+    dirs: Vec<Vec3>,
+    rgb_raw: Vec<[f32; 3]>,
+    rays: Vec<PooledRay>,
+    units: Vec<Unit>,
+}
+
+impl Filler {
+    /// Marches `ray` (of view `v`, pixel `p`) as the step does, segment by segment, evaluates
+    /// the background's density on each segment and stops once the transmittance of the
+    /// samples outside the region falls below [`EARLY_STOP_TRANSMITTANCE`]; then the
+    /// background's colour of the kept samples, and the ray's units.
+    fn add<P, C>(&mut self, x: &PoolInputs<P, C>, v: u32, p: u32, ray: Ray) {
+        let (occ, split) = (x.occupancy, x.split);
+        let bg = split.frozen();
+        let (max, stride) = (occ.config().max_samples, x.cfg.frozen_stride);
+        for b in [&mut self.t, &mut self.delta, &mut self.raw] {
+            b.clear();
+        }
+        self.positions.clear();
+        self.keep.clear();
+        if let Some(span) = occ.span(ray.origin, ray.dir) {
+            let mut t_out = 1.0f32;
+            let (mut next, mut taken, mut segment) = (0, 0u32, RAY_SEGMENT);
+            'march: loop {
+                let s0 = self.t.len();
+                let room = segment.min(max.saturating_sub(taken) as usize);
+                next = occ.march_segment(
+                    ray.origin,
+                    ray.dir,
+                    span,
+                    next..span.steps,
+                    room,
+                    stride,
+                    &mut self.t,
+                    &mut self.delta,
+                );
+                let count = self.t.len() - s0;
+                if count == 0 {
+                    break;
+                }
+                taken += count as u32;
+                self.positions.extend(self.t[s0..].iter().map(|&t| ray.at(t)));
+                self.raw.resize(s0 + count, 0.0);
+                bg.field.chunk_density(
+                    x.isa,
+                    &bg.params,
+                    s0,
+                    &self.positions[s0..],
+                    &mut self.raw[s0..],
+                    &mut self.chunk,
+                );
+                for i in s0..s0 + count {
+                    if t_out < EARLY_STOP_TRANSMITTANCE {
+                        break 'march;
+                    }
+                    self.keep.push(i as u32);
+                    if !split.is_inside(self.positions[i]) {
+                        t_out *= transmitted(split.outside(self.raw[i], [0.0; 3]).0, self.delta[i]);
+                    }
+                }
+                if t_out < EARLY_STOP_TRANSMITTANCE || next >= span.steps || taken >= max {
+                    break;
+                }
+                segment *= 2;
+            }
+        }
+        let marched = self.t.len() as u32;
+        let k = self.keep.len();
+        self.rgb_raw.resize(k, [0.0; 3]);
+        if k > 0 {
+            bg.field.chunk_keep(&mut self.chunk, &self.keep);
+            self.dirs.clear();
+            self.dirs.resize(k, ray.dir);
+            bg.field.chunk_colour(x.isa, &bg.params, &self.dirs, &mut self.rgb_raw, &mut self.chunk);
+        }
+        let start = self.units.len();
+        let mut run: Option<(RayAccumulator, f32, f32)> = None;
+        for (j, &i) in self.keep.iter().enumerate() {
+            let i = i as usize;
+            let (t, delta, s, c) = (self.t[i], self.delta[i], self.raw[i], self.rgb_raw[j]);
+            if split.is_inside(self.positions[i]) {
+                flush_run(run.take(), &mut self.units);
+                self.units.push(Unit { t, delta, s, c, inside: true });
+            } else {
+                let (sigma, rgb) = split.outside(s, c);
+                let r = run.get_or_insert((RayAccumulator::new(), t, t));
+                r.0.push(sigma, delta, t, rgb);
+                r.2 = t;
+            }
+        }
+        flush_run(run, &mut self.units);
+        let unchanged = x.changed.get(v as usize).is_some_and(|b| b[p as usize / 64] >> (p % 64) & 1 == 0);
+        self.rays.push(PooledRay {
+            ray,
+            target: x.views[v as usize].rgb[p as usize],
+            view: v,
+            pixel: p,
+            unchanged,
+            units: (start as u32, (self.units.len() - start) as u32),
+            marched,
+        });
+    }
+}
+
+/// Appends a run of outside samples (its accumulator, first and last `t`) as one unit; a run
+/// that lets all light through is dropped.
+fn flush_run(run: Option<(RayAccumulator, f32, f32)>, units: &mut Vec<Unit>) {
+    let Some((acc, t0, t1)) = run else { return };
+    let r = acc.finish([0.0; 3]);
+    let alpha = 1.0 - r.transmittance;
+    if alpha <= 0.0 {
+        return;
+    }
+    units.push(Unit {
+        t: 0.5 * (t0 + t1),
+        delta: 1.0,
+        s: -r.transmittance.ln(),
+        c: r.rgb.map(|c| c / alpha),
+        inside: false,
+    });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::encoding::HashGridConfig;
+    use crate::field::mix::{DensityMix, MixKind};
+    use crate::field::mixnet::MixnetEncoding;
+    use crate::field::model::Model;
+    use crate::field::residual::{ResidualConfig, ResidualField};
+    use crate::field::{Nerf, NerfConfig, NerfField};
+    use crate::geometry::ChangeRegion;
+    use crate::render::OccupancyConfig;
+    use crate::slots::{slot_range, SLOTS};
+    use crate::train::step::{StepInputs, StepRays, Worker};
+    use crate::train::trainer::Focus;
+    use std::sync::Arc;
+
+    /// A pooled step's loss and gradients are those of marching the same rays fresh: the runs
+    /// outside the region composited once and the background's values handed in change only
+    /// the rounding. A random background and residual over the tabletop scene, a change region
+    /// of 4³ cells at its centre, β penalty on.
+    #[test]
+    fn a_pooled_step_has_the_loss_and_gradients_of_the_same_rays_marched_fresh() {
+        let isa = Isa::detect();
+        let scene = crate::data::synth::tabletop(24, 4, 0.0);
+        let aabb = scene.aabb;
+        let grid = HashGridConfig { levels: 6, log2_table_size: 10, base_resolution: 4, finest_resolution: 64 };
+        let mut rng = Rng::new(3);
+        let bg_field = NerfField::new(NerfConfig { grid, aabb });
+        let mut bg_params = bg_field.init_params(&mut rng);
+        bg_params.grid.master.iter_mut().for_each(|v| *v = rng.uniform(-1.0, 1.0));
+        bg_params.grid.sync_mirror();
+        let occ_cfg = OccupancyConfig { resolution: 8, ..Default::default() };
+        let bg_grid = OccupancyGrid::new(aabb, occ_cfg.clone());
+        let bg = Nerf { field: bg_field, params: bg_params, occupancy: bg_grid.clone() };
+        let cells: Vec<u32> =
+            (2..6).flat_map(|z| (2..6).flat_map(move |y| (2..6).map(move |x| x + 8 * (y + 8 * z)))).collect();
+        let region = ChangeRegion::from_cells(aabb, 8, &cells).unwrap();
+        let config = ResidualConfig {
+            residual: NerfConfig { grid, aabb },
+            kind: MixKind::Mixnet(DensityMix::Raw),
+            mixnet: MixnetEncoding::Shared,
+        };
+        let field = ResidualField::new(bg, config).with_region(region.clone());
+        let mut params = field.init_params(&mut rng);
+        params.residual.grid.master.iter_mut().for_each(|v| *v = rng.uniform(-1.0, 1.0));
+        params.residual.grid.sync_mirror();
+        let last = *field.mixnet().mlp().layers().last().unwrap();
+        let w = params.mixnet.mlp.weights_mut();
+        for k in 0..last.k_real {
+            w[last.offset + k * last.o] = rng.uniform(-0.3, 0.3);
+        }
+        params.mixnet.mlp.sync();
+        let mut occupancy = bg_grid;
+        occupancy.pin(&region);
+        occupancy.freeze_outside_pins();
+
+        let views = &scene.views;
+        let pixels: Vec<(u32, u32)> = (0..views.len() as u32).flat_map(|v| (0..24 * 24).map(move |p| (v, p))).collect();
+        let mut cfg = TrainConfig::with_steps(10);
+        cfg.rays_per_step = 256;
+        cfg.occupancy = occ_cfg;
+        cfg.beta.unchanged = 0.5;
+        cfg.focus = Some(Focus {
+            share: 0.25,
+            pixels: Arc::new(pixels.iter().copied().filter(|&(_, p)| p % 7 == 0).collect()),
+            reach: Some(Arc::new(pixels)),
+            spared: None,
+        });
+        let changed: Vec<Vec<u64>> = views.iter().map(|_| vec![0x5555_5555_5555_5555; 24 * 24 / 64 + 1]).collect();
+        let split = field.frozen_outside().expect("a residual model with a region is frozen outside it");
+        let mut pool = RayPool::new(cfg.rays_per_step, 64, 4);
+        let x = PoolInputs { isa, split, occupancy: &occupancy, views, cfg: &cfg, changed: &changed };
+        pool.refresh(0, &x);
+        pool.refresh(1, &x);
+        let mut rays = StepRays::default();
+        pool.draw(1, cfg.rays_per_step, &mut Rng::new(5), &mut rays.pooled);
+        for &(g, k) in &rays.pooled {
+            let r = &pool.group(g).rays[k as usize];
+            rays.rays.push(r.ray);
+            rays.targets.push(r.target);
+            rays.view.push(r.view);
+            rays.pixel.push(r.pixel);
+            rays.unchanged.push(r.unchanged);
+            rays.backgrounds.push([0.3, 0.5, 0.7]);
+        }
+        assert!(rays.unchanged.iter().any(|&u| u) && rays.unchanged.iter().any(|&u| !u));
+        let inputs = StepInputs {
+            isa,
+            model: &field,
+            params: &params,
+            occupancy: &occupancy,
+            cfg: &cfg,
+            entropy: 0.1,
+            gains: &[],
+        };
+        let run = |pooled: bool| {
+            let mut workers: Vec<Worker<_>> = (0..SLOTS).map(|_| Worker::default()).collect();
+            let mut slots: Vec<_> = (0..SLOTS).map(|_| Default::default()).collect();
+            for (s, (w, slot)) in workers.iter_mut().zip(slots.iter_mut()).enumerate() {
+                let range = slot_range(rays.rays.len(), s);
+                match pooled {
+                    true => w.run_pooled(&inputs, split, &pool, &rays, range, slot),
+                    false => w.run(&inputs, &rays, range, slot),
+                }
+            }
+            let mut grads = field.zero_grads();
+            field.finish_step(isa, &slots, &mut grads);
+            let loss: f64 = workers.iter().map(|w| w.loss).sum();
+            let kept: usize = workers.iter().map(|w| w.n_kept).sum();
+            let mut p = params.clone();
+            let g: Vec<Vec<f32>> = field.groups(&mut p, &grads).iter().map(|g| g.grad.to_vec()).collect();
+            (loss, kept, g)
+        };
+        let (loss_p, kept_p, grads_p) = run(true);
+        let (loss_f, kept_f, grads_f) = run(false);
+        assert!(kept_p > 0 && kept_p < kept_f, "pooled rays run only their inside samples ({kept_p} of {kept_f})");
+        assert!((loss_p - loss_f).abs() <= 1e-5 * loss_f, "loss {loss_p} pooled, {loss_f} fresh");
+        for (i, (p, f)) in grads_p.iter().zip(&grads_f).enumerate() {
+            let scale = f.iter().fold(0f32, |m, v| m.max(v.abs()));
+            assert!(scale > 0.0 || i == 3, "group {i} has a gradient");
+            for (j, (a, b)) in p.iter().zip(f).enumerate() {
+                assert!((a - b).abs() <= 1e-3 * scale, "group {i}[{j}]: pooled {a}, fresh {b} (scale {scale})");
+            }
+        }
+    }
+}
