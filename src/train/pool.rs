@@ -36,7 +36,7 @@
 //! and at the same training time fewer fresh rays per step (`--rays 512`) give better depth
 //! (docs/DECISIONS.md, "The ray pool").
 
-use super::step::RAY_SEGMENT;
+use super::step::{StepRays, RAY_SEGMENT};
 use super::trainer::{draw_pixel, ray_through, TrainConfig};
 use crate::data::View;
 use crate::field::model::FrozenOutside;
@@ -167,6 +167,30 @@ impl RayPool {
             let slot = ((w.start + u / self.reach as u64) % n) as u32;
             (slot, (self.groups[slot as usize].focus as u64 + u % self.reach as u64) as u32)
         }));
+    }
+
+    /// [`RayPool::draw`] into `rays` (cleared): each drawn ray's pool index, ray, target, view,
+    /// pixel and β flag, and a colour behind it from `background` (called in ray order after
+    /// the draws).
+    pub fn take(
+        &self,
+        step: u32,
+        count: usize,
+        rng: &mut Rng,
+        rays: &mut StepRays,
+        mut background: impl FnMut(&mut Rng) -> [f32; 3],
+    ) {
+        rays.clear();
+        self.draw(step, count, rng, &mut rays.pooled);
+        for &(g, k) in &rays.pooled {
+            let r = &self.groups[g as usize].rays[k as usize];
+            rays.rays.push(r.ray);
+            rays.targets.push(r.target);
+            rays.view.push(r.view);
+            rays.pixel.push(r.pixel);
+            rays.unchanged.push(r.unchanged);
+            rays.backgrounds.push(background(rng));
+        }
     }
 
     /// Group slot `slot`.
@@ -360,7 +384,7 @@ mod tests {
     use crate::geometry::ChangeRegion;
     use crate::render::OccupancyConfig;
     use crate::slots::{slot_range, SLOTS};
-    use crate::train::step::{StepInputs, StepRays, Worker};
+    use crate::train::step::{StepInputs, Worker};
     use crate::train::trainer::Focus;
     use std::sync::Arc;
 
@@ -423,16 +447,7 @@ mod tests {
         pool.refresh(0, &x);
         pool.refresh(1, &x);
         let mut rays = StepRays::default();
-        pool.draw(1, cfg.rays_per_step, &mut Rng::new(5), &mut rays.pooled);
-        for &(g, k) in &rays.pooled {
-            let r = &pool.group(g).rays[k as usize];
-            rays.rays.push(r.ray);
-            rays.targets.push(r.target);
-            rays.view.push(r.view);
-            rays.pixel.push(r.pixel);
-            rays.unchanged.push(r.unchanged);
-            rays.backgrounds.push([0.3, 0.5, 0.7]);
-        }
+        pool.take(1, cfg.rays_per_step, &mut Rng::new(5), &mut rays, |_| [0.3, 0.5, 0.7]);
         assert!(rays.unchanged.iter().any(|&u| u) && rays.unchanged.iter().any(|&u| !u));
         let inputs = StepInputs {
             isa,

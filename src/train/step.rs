@@ -43,6 +43,19 @@ pub(super) struct StepRays {
     pub(super) pooled: Vec<(u32, u32)>,
 }
 
+impl StepRays {
+    /// Empties every list.
+    pub(super) fn clear(&mut self) {
+        self.rays.clear();
+        self.targets.clear();
+        self.backgrounds.clear();
+        self.unchanged.clear();
+        self.view.clear();
+        self.pixel.clear();
+        self.pooled.clear();
+    }
+}
+
 /// Marched samples a chunk of the fused step holds at least (it takes whole rays, so it ends
 /// with the rest of its last ray). Small enough that a chunk's activations (~1 KiB a sample)
 /// stay in L1/L2 between its forward and backward: the MLPs run 1.6× faster on 64-row
@@ -52,6 +65,41 @@ pub const CHUNK_SAMPLES: usize = 128;
 /// Samples of a ray's first evaluated segment; each further segment doubles. A ray's
 /// densities are evaluated only up to the segment in which it turns opaque.
 pub const RAY_SEGMENT: usize = 128;
+
+/// Ray `ray`'s composited colour `rgb` against its target (through its image's gain when gains
+/// are learned, adding the gain's gradient into `d_gain`): its squared error joins `loss` and,
+/// as the mean over the channels, `errors`; returns dL/dC (Eq. 4, averaged over the step's rays).
+fn score_ray<M: Model>(
+    x: &StepInputs<M>,
+    rays: &StepRays,
+    ray: usize,
+    rgb: [f32; 3],
+    loss: &mut f64,
+    errors: &mut Vec<f32>,
+    d_gain: &mut [[f32; 3]],
+) -> [f32; 3] {
+    let scale = 2.0 / (3 * x.cfg.rays_per_step) as f32;
+    let target = rays.targets[ray];
+    let (err, d_colour) = match x.gains.get(rays.view[ray] as usize) {
+        Some(&g) => gained_error(rgb, target, g, scale, &mut d_gain[rays.view[ray] as usize]),
+        None => {
+            let err: [f32; 3] = std::array::from_fn(|i| rgb[i] - target[i]);
+            (err, err.map(|e| e * scale))
+        }
+    };
+    let sq: f32 = err.iter().map(|e| e * e).sum();
+    errors.push(sq / 3.0);
+    *loss += err.iter().map(|e| (e * e) as f64).sum::<f64>();
+    d_colour
+}
+
+/// Ray `ray`'s weights of the β penalty (0 on a changed ray) and of the β entropy, each per ray
+/// and averaged over the step's rays.
+fn beta_weights<M: Model>(x: &StepInputs<M>, rays: &StepRays, ray: usize) -> (f32, f32) {
+    let (cfg, n) = (x.cfg, x.cfg.rays_per_step as f32);
+    let unchanged = if rays.unchanged[ray] { cfg.beta.unchanged } else { 0.0 };
+    (unchanged / n, x.entropy / n)
+}
 
 /// One slot's share of a fused step: its chunk's buffers, reused from step to step.
 pub(super) struct Worker<C> {
@@ -142,12 +190,7 @@ impl<C> Worker<C> {
         range: std::ops::Range<usize>,
         slot: &mut M::Slot,
     ) {
-        (self.loss, self.n_marched, self.n_kept) = (0.0, 0, 0);
-        self.d_gain.clear();
-        self.d_gain.resize(x.gains.len(), [0.0; 3]);
-        self.ray_errors.clear();
-        x.model.begin_slot(slot);
-        self.begin_chunk();
+        self.begin_run(x, slot);
         let mut first = range.start;
         for i in range.clone() {
             self.add_ray(x, &rays.rays[i]);
@@ -172,12 +215,7 @@ impl<C> Worker<C> {
         range: std::ops::Range<usize>,
         slot: &mut M::Slot,
     ) {
-        (self.loss, self.n_marched, self.n_kept) = (0.0, 0, 0);
-        self.d_gain.clear();
-        self.d_gain.resize(x.gains.len(), [0.0; 3]);
-        self.ray_errors.clear();
-        x.model.begin_slot(slot);
-        self.begin_chunk();
+        self.begin_run(x, slot);
         let mut first = range.start;
         for i in range.clone() {
             let (g, k) = rays.pooled[i];
@@ -273,7 +311,6 @@ impl<C> Worker<C> {
         self.d_sigma.resize(k, 0.0);
         self.d_rgb.clear();
         self.d_rgb.resize(k, [0.0; 3]);
-        let scale = 2.0 / (3 * cfg.rays_per_step) as f32;
         let mut beta = match cfg.beta.is_on() && k > 0 {
             true => x.model.chunk_beta(&mut self.chunk),
             false => None,
@@ -282,16 +319,7 @@ impl<C> Worker<C> {
             let r = s0 as usize..(s0 + count) as usize;
             let (sigma, delta, t) = (&u.sigma[r.clone()], &u.delta[r.clone()], &u.t[r.clone()]);
             let c = composite_ray(sigma, delta, t, &u.rgb[r.clone()], rays.backgrounds[ray]);
-            let (err, d_colour) = match x.gains.get(rays.view[ray] as usize) {
-                Some(&g) => gained_error(c.rgb, rays.targets[ray], g, scale, &mut self.d_gain[rays.view[ray] as usize]),
-                None => {
-                    let err: [f32; 3] = std::array::from_fn(|i| c.rgb[i] - rays.targets[ray][i]);
-                    (err, err.map(|e| e * scale))
-                }
-            };
-            let sq: f32 = err.iter().map(|e| e * e).sum();
-            self.ray_errors.push(sq / 3.0);
-            self.loss += err.iter().map(|e| (e * e) as f64).sum::<f64>();
+            let d_colour = score_ray(x, rays, ray, c.rgb, &mut self.loss, &mut self.ray_errors, &mut self.d_gain);
             u.d_sigma.resize(count as usize, 0.0);
             u.d_rgb.resize(count as usize, [0.0; 3]);
             composite_ray_backward(sigma, delta, &u.rgb[r.clone()], &c, d_colour, &mut u.d_sigma, &mut u.d_rgb);
@@ -301,8 +329,7 @@ impl<C> Worker<C> {
                 self.d_rgb[kr as usize] = u.d_rgb[j];
             }
             if let Some((beta, d_beta)) = &mut beta {
-                let unchanged = if rays.unchanged[ray] { cfg.beta.unchanged } else { 0.0 } / cfg.rays_per_step as f32;
-                let entropy = x.entropy / cfg.rays_per_step as f32;
+                let (unchanged, entropy) = beta_weights(x, rays, ray);
                 if unchanged > 0.0 || entropy > 0.0 {
                     u.beta.clear();
                     u.beta.extend(kept.iter().map(|&kr| if kr == u32::MAX { 0.0 } else { beta[kr as usize] }));
@@ -318,6 +345,16 @@ impl<C> Worker<C> {
         if k > 0 {
             x.model.chunk_backward(x.isa, x.params, &mut self.chunk, &self.d_sigma, &self.d_rgb, slot);
         }
+    }
+
+    /// Starts the slot's share of a step: no loss, samples or gain gradients yet, an empty chunk.
+    fn begin_run<M: Model<Chunk = C>>(&mut self, x: &StepInputs<M>, slot: &mut M::Slot) {
+        (self.loss, self.n_marched, self.n_kept) = (0.0, 0, 0);
+        self.d_gain.clear();
+        self.d_gain.resize(x.gains.len(), [0.0; 3]);
+        self.ray_errors.clear();
+        x.model.begin_slot(slot);
+        self.begin_chunk();
     }
 
     /// Empties the chunk's buffers.
@@ -403,7 +440,6 @@ impl<C> Worker<C> {
         // Composite, loss, and back through compositing, ray by ray.
         self.d_sigma.resize(k, 0.0);
         self.d_rgb.resize(k, [0.0; 3]);
-        let scale = 2.0 / (3 * cfg.rays_per_step) as f32;
         let mut beta = match cfg.beta.is_on() && k > 0 {
             true => x.model.chunk_beta(&mut self.chunk),
             false => None,
@@ -412,16 +448,7 @@ impl<C> Worker<C> {
             let r = s0 as usize..(s0 + count) as usize;
             let (sigma, delta, t) = (&self.sigma[r.clone()], &m.delta[r.clone()], &m.t[r.clone()]);
             let c = composite_ray(sigma, delta, t, &self.rgb[r.clone()], rays.backgrounds[ray]);
-            let (err, d_colour) = match x.gains.get(rays.view[ray] as usize) {
-                Some(&g) => gained_error(c.rgb, rays.targets[ray], g, scale, &mut self.d_gain[rays.view[ray] as usize]),
-                None => {
-                    let err: [f32; 3] = std::array::from_fn(|i| c.rgb[i] - rays.targets[ray][i]);
-                    (err, err.map(|e| e * scale))
-                }
-            };
-            let sq: f32 = err.iter().map(|e| e * e).sum();
-            self.ray_errors.push(sq / 3.0);
-            self.loss += err.iter().map(|e| (e * e) as f64).sum::<f64>();
+            let d_colour = score_ray(x, rays, ray, c.rgb, &mut self.loss, &mut self.ray_errors, &mut self.d_gain);
             let (d_s, d_c) = (&mut self.d_sigma[r.clone()], &mut self.d_rgb[r.clone()]);
             composite_ray_backward(sigma, delta, &self.rgb[r.clone()], &c, d_colour, d_s, d_c);
             if cfg.distortion > 0.0 {
@@ -429,9 +456,7 @@ impl<C> Worker<C> {
                 distortion_backward(sigma, delta, t, weight, d_s, &mut self.scratch);
             }
             if let Some((beta, d_beta)) = &mut beta {
-                // Per-ray terms, averaged over the step's rays.
-                let unchanged = if rays.unchanged[ray] { cfg.beta.unchanged } else { 0.0 } / cfg.rays_per_step as f32;
-                let entropy = x.entropy / cfg.rays_per_step as f32;
+                let (unchanged, entropy) = beta_weights(x, rays, ray);
                 if unchanged > 0.0 || entropy > 0.0 {
                     beta_terms(sigma, delta, &beta[r.clone()], unchanged, entropy, &mut d_beta[r.clone()]);
                 }

@@ -552,13 +552,7 @@ impl<'a, M: Model> Trainer<'a, M> {
         //    over all pixels of all views; or, with the ray pool, drawn from the pool (whose
         //    fresh rays are drawn the same way).
         let mut srng = Rng::stream(cfg.seed, step as u64);
-        rays.rays.clear();
-        rays.targets.clear();
-        rays.backgrounds.clear();
-        rays.unchanged.clear();
-        rays.view.clear();
-        rays.pixel.clear();
-        rays.pooled.clear();
+        rays.clear();
         let focused = match &cfg.focus {
             Some(f) if !f.pixels.is_empty() => (f.share.clamp(0.0, 1.0) * cfg.rays_per_step as f32).round() as usize,
             _ => 0,
@@ -581,19 +575,10 @@ impl<'a, M: Model> Trainer<'a, M> {
             let pool = pool.get_or_insert_with(|| RayPool::new(cfg.rays_per_step, focused, cfg.ray_pool));
             let occupancy = &*occupancy;
             pool.refresh(step, &PoolInputs { isa, split, occupancy, views, cfg, changed });
-            pool.draw(step, cfg.rays_per_step, &mut srng, &mut rays.pooled);
-            for &(g, k) in &rays.pooled {
-                let r = &pool.group(g).rays[k as usize];
-                rays.rays.push(r.ray);
-                rays.targets.push(r.target);
-                rays.view.push(r.view);
-                rays.pixel.push(r.pixel);
-                rays.unchanged.push(r.unchanged);
-                rays.backgrounds.push(match cfg.random_background {
-                    true => std::array::from_fn(|_| srng.uniform(0.0, 1.0)),
-                    false => cfg.background,
-                });
-            }
+            pool.take(step, cfg.rays_per_step, &mut srng, rays, |rng| match cfg.random_background {
+                true => std::array::from_fn(|_| rng.uniform(0.0, 1.0)),
+                false => cfg.background,
+            });
         }
         for r in (0..cfg.rays_per_step).filter(|_| split.is_none()) {
             let errors = Some((&*tiles, &*sampler));
