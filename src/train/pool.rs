@@ -202,7 +202,7 @@ impl RayPool {
     /// groups, then the reach rays) and evaluates their background, in [`SLOTS`] parts.
     fn fill<P, C>(&mut self, slot: usize, id: u64, x: &PoolInputs<P, C>) {
         let mut rng = Rng::stream(x.cfg.seed ^ POOL_KEY, id);
-        let focus = if id + 1 >= self.start_groups { self.focus } else { 0 };
+        let focus = if id >= self.start_groups { self.focus } else { 0 };
         let f = focus + self.reach;
         let drawn: Vec<(u32, u32, Ray)> = (0..f)
             .map(|r| {
