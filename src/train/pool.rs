@@ -403,7 +403,7 @@ mod tests {
         let mut bg_params = bg_field.init_params(&mut rng);
         bg_params.grid.master.iter_mut().for_each(|v| *v = rng.uniform(-1.0, 1.0));
         bg_params.grid.sync_mirror();
-        let occ_cfg = OccupancyConfig { resolution: 8, ..Default::default() };
+        let occ_cfg = OccupancyConfig { resolution: 8, steps_per_diagonal: 128, ..Default::default() };
         let bg_grid = OccupancyGrid::new(aabb, occ_cfg.clone());
         let bg = Nerf { field: bg_field, params: bg_params, occupancy: bg_grid.clone() };
         let cells: Vec<u32> =
@@ -431,7 +431,7 @@ mod tests {
         let views = &scene.views;
         let pixels: Vec<(u32, u32)> = (0..views.len() as u32).flat_map(|v| (0..24 * 24).map(move |p| (v, p))).collect();
         let mut cfg = TrainConfig::with_steps(10);
-        cfg.rays_per_step = 256;
+        cfg.rays_per_step = 128;
         cfg.occupancy = occ_cfg;
         cfg.beta.unchanged = 0.5;
         cfg.focus = Some(Focus {
@@ -442,7 +442,7 @@ mod tests {
         });
         let changed: Vec<Vec<u64>> = views.iter().map(|_| vec![0x5555_5555_5555_5555; 24 * 24 / 64 + 1]).collect();
         let split = field.frozen_outside().expect("a residual model with a region is frozen outside it");
-        let mut pool = RayPool::new(cfg.rays_per_step, 64, 4);
+        let mut pool = RayPool::new(cfg.rays_per_step, 32, 4);
         let x = PoolInputs { isa, split, occupancy: &occupancy, views, cfg: &cfg, changed: &changed };
         pool.refresh(0, &x);
         pool.refresh(1, &x);
