@@ -205,9 +205,11 @@ impl Flags {
                 self.frozen_stride = Some(n);
             }
             "ray-pool" => {
-                let n: u32 = text(p, name)?.parse().ok().filter(|n| *n <= 1024).ok_or_else(|| {
-                    err("--ray-pool: expected a whole number of draws per ray in 0..=1024".to_string())
-                })?;
+                let max = crate::train::trainer::MAX_RAY_POOL;
+                let n: u32 =
+                    text(p, name)?.parse().ok().filter(|n| *n <= max).ok_or_else(|| {
+                        err(format!("--ray-pool: expected a whole number of draws per ray in 0..={max}"))
+                    })?;
                 self.ray_pool = Some(n);
             }
             "region-vote" => {

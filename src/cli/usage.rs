@@ -56,8 +56,9 @@ commands:
          at least V of those see a change there, default 0.5,0.25;
          --frozen-stride: outside the change region one training sample stands for N marching
          steps of the frozen background, default 1 (every step);
-         --ray-pool: the background-aware residual draws each training ray of an unchanged
-         pixel N times on average, its background evaluated once, default 0 (every ray fresh);
+         --ray-pool: the background-aware residual draws each training ray not taken from the
+         changed pixels N times on average, its background evaluated once, default 0 (every
+         ray fresh);
          --exposure-correction: fit each scene image's exposure and white balance to the
          background's before the change maps and training, default on;
          --pose-registration: correct each scene image's pose so it agrees with the background

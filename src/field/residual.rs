@@ -475,7 +475,7 @@ impl ResidualField {
         let sub_from = c.inside.len();
         c.sub_pos.clear();
         for (i, &p) in positions.iter().enumerate() {
-            if self.region.as_ref().is_none_or(|r| r.contains(p)) {
+            if self.in_region(p) {
                 c.inside.push((from + i) as u32);
                 c.sub_pos.push(p);
             }
@@ -665,13 +665,10 @@ impl ResidualField {
         }
     }
 
-    /// The activated density and colour of a sample outside the change region, from the
-    /// background's raw outputs: the mix at β = 0 with the residual's inputs set to the
-    /// background's, exactly as [`ResidualField::chunk_density`] and
-    /// [`ResidualField::chunk_colour`] set them.
-    fn outside_sample(&self, s: f32, c: [f32; 3]) -> (f32, [f32; 3]) {
-        let o = mix_forward(self.kind, &MixInput { s_bg: s, c_bg: c, s_res: s, c_res: c, m: f32::NEG_INFINITY });
-        (o.sigma, o.rgb)
+    /// Whether `p` is where the residual and the Mixnet are evaluated: inside the change region,
+    /// or anywhere without one.
+    fn in_region(&self, p: Vec3) -> bool {
+        self.region.as_ref().is_none_or(|r| r.contains(p))
     }
 
     /// The residual's features of the last forward when the Mixnet shares them.
@@ -686,11 +683,14 @@ impl FrozenOutside<ResidualParams, ResidualChunk> for ResidualField {
     }
 
     fn is_inside(&self, p: Vec3) -> bool {
-        self.region.as_ref().is_none_or(|r| r.contains(p))
+        self.in_region(p)
     }
 
+    /// The mix at β = 0 with the residual's inputs set to the background's, exactly as
+    /// [`ResidualField::chunk_density`] and [`ResidualField::chunk_colour`] set them outside.
     fn outside(&self, s: f32, c: [f32; 3]) -> (f32, [f32; 3]) {
-        self.outside_sample(s, c)
+        let o = mix_forward(self.kind, &MixInput { s_bg: s, c_bg: c, s_res: s, c_res: c, m: f32::NEG_INFINITY });
+        (o.sigma, o.rgb)
     }
 
     fn chunk_density_over(

@@ -418,7 +418,7 @@ pub fn parse_train_config(v: &Value, occupancy: OccupancyConfig) -> Result<Train
         // Added later: absent means every ray fresh (how those runs were trained).
         ray_pool: match v.get("ray_pool") {
             None => 0,
-            Some(_) => uint(v, "ray_pool", 0, 1 << 16)? as u32,
+            Some(_) => uint(v, "ray_pool", 0, crate::train::trainer::MAX_RAY_POOL as u64)? as u32,
         },
     })
 }

@@ -18,6 +18,13 @@
 /// Transmittance below which marching stops.
 pub const EARLY_STOP_TRANSMITTANCE: f32 = 1e-4;
 
+/// Whether a ray whose transmittance has fallen to `transmittance` is opaque: later samples
+/// are ignored (the early stop of training, rendering and compositing).
+#[inline]
+pub fn is_opaque(transmittance: f32) -> bool {
+    transmittance < EARLY_STOP_TRANSMITTANCE
+}
+
 /// The share of light a sample of density `sigma` and step `delta` lets through, `e^{−σδ}`.
 #[inline]
 pub fn transmitted(sigma: f32, delta: f32) -> f32 {
@@ -46,7 +53,7 @@ pub fn weights_from_density(sigma: &[f32], delta: &[f32], weights: &mut [f32]) -
     let mut t = 1.0f32;
     let mut used = sigma.len();
     for i in 0..sigma.len() {
-        if t < EARLY_STOP_TRANSMITTANCE {
+        if is_opaque(t) {
             used = i;
             weights[i..].fill(0.0);
             break;
@@ -99,7 +106,7 @@ impl RayAccumulator {
     /// be ignored).
     #[inline]
     pub fn is_opaque(&self) -> bool {
-        self.acc.transmittance < EARLY_STOP_TRANSMITTANCE
+        is_opaque(self.acc.transmittance)
     }
 
     /// Adds the next sample (activated density and colour); returns its weight `w = T·α`.

@@ -17,7 +17,7 @@
 //! marching visits exactly the samples of one-shot marching, so results equal compositing the
 //! whole ray (tested).
 
-use super::composite::{transmitted, RayAccumulator, EARLY_STOP_TRANSMITTANCE};
+use super::composite::{is_opaque, transmitted, RayAccumulator};
 use super::depth::DensityThreshold;
 use super::{pixel_ray, Intrinsics, OccupancyGrid, Pose, Ray, RaySpan};
 use crate::field::model::Model;
@@ -40,11 +40,6 @@ const CHUNK: usize = 256;
 /// First segment length of the full path; doubles per round up to [`MAX_SEGMENT`].
 const FIRST_SEGMENT: usize = 16;
 const MAX_SEGMENT: usize = 128;
-
-/// Whether a ray with this transmittance is opaque ([`RayAccumulator::is_opaque`]'s test).
-fn opaque(transmittance: f32) -> bool {
-    transmittance < EARLY_STOP_TRANSMITTANCE
-}
 
 /// Per-ray marching state.
 #[derive(Clone, Copy)]
@@ -336,7 +331,7 @@ impl<M: Model> Worker<M> {
                     let j = (start as usize..(start + count) as usize).find(|&j| sigma[j] >= min_sigma);
                     s.hit = j.map(|j| t[j]);
                 }
-                let finished = if full { opaque(s.transmittance) && s.hit.is_some() } else { s.hit.is_some() };
+                let finished = if full { is_opaque(s.transmittance) && s.hit.is_some() } else { s.hit.is_some() };
                 let exhausted = s.next >= s.span.steps || s.taken >= max_samples || count == 0;
                 !(finished || exhausted)
             });
@@ -400,7 +395,7 @@ impl<M: Model> Worker<M> {
                 if s.hit.is_none() && sigma >= min_sigma {
                     s.hit = Some(self.t[j]);
                 }
-                if !opaque(s.transmittance) {
+                if !is_opaque(s.transmittance) {
                     let share = transmitted(sigma, self.delta[j]);
                     s.transmittance *= share;
                     self.keep.push((j - from) as u32);

@@ -18,9 +18,9 @@
 //!   density and pre-sigmoid colour there (the mix needs them; the background is not
 //!   evaluated again).
 //!
-//! A ray is kept up to the point where the transmittance of its runs alone falls below
-//! [`EARLY_STOP_TRANSMITTANCE`]: the samples inside can only lower the transmittance further,
-//! so compositing at any parameters stops before that point.
+//! A ray is kept up to the point where the transmittance of its runs alone is opaque
+//! ([`crate::render::composite::is_opaque`]): the samples inside can only lower the
+//! transmittance further, so compositing at any parameters stops before that point.
 //!
 //! Each step adds one **group**: its own rays of the focus pixels (the changed pixels, drawn
 //! fresh and used by that step only) and `(rays_per_step − focus) / reuse` rays of the reach
@@ -36,13 +36,13 @@
 //! and at the same training time fewer fresh rays per step (`--rays 512`) give better depth
 //! (docs/DECISIONS.md, "The ray pool").
 
-use super::step::{StepRays, RAY_SEGMENT};
-use super::trainer::{draw_pixel, ray_through, TrainConfig};
+use super::step::{march_in_segments, StepRays};
+use super::trainer::{draw_pixel, is_unchanged, ray_through, TrainConfig};
 use crate::data::View;
 use crate::field::model::FrozenOutside;
 use crate::field::FieldChunk;
 use crate::geometry::camera::Ray;
-use crate::render::composite::{transmitted, RayAccumulator, EARLY_STOP_TRANSMITTANCE};
+use crate::render::composite::{is_opaque, transmitted, RayAccumulator};
 use crate::render::OccupancyGrid;
 use crate::rng::Rng;
 use crate::simd::Isa;
@@ -152,26 +152,10 @@ impl RayPool {
         }
     }
 
-    /// `step`'s rays as `(group slot, ray)` pairs: its own group's focus rays, then `count`
-    /// less those drawn uniformly from the reach rays of the window's groups.
-    pub fn draw(&self, step: u32, count: usize, rng: &mut Rng, out: &mut Vec<(u32, u32)>) {
-        let w = self.window(step);
-        let n = self.groups.len() as u64;
-        let own = ((w.end - 1) % n) as u32;
-        let focus = self.groups[own as usize].focus;
-        let total = (w.end - w.start) * self.reach as u64;
-        out.clear();
-        out.extend((0..focus.min(count) as u32).map(|i| (own, i)));
-        out.extend((0..count.saturating_sub(focus)).map(|_| {
-            let u = rng.below(total);
-            let slot = ((w.start + u / self.reach as u64) % n) as u32;
-            (slot, (self.groups[slot as usize].focus as u64 + u % self.reach as u64) as u32)
-        }));
-    }
-
-    /// [`RayPool::draw`] into `rays` (cleared): each drawn ray's pool index, ray, target, view,
-    /// pixel and β flag, and a colour behind it from `background` (called in ray order after
-    /// the draws).
+    /// `step`'s `count` rays into `rays` (cleared): its own group's focus rays, then the rest
+    /// drawn uniformly from the reach rays of the window's groups; each with its pool index
+    /// (`(group slot, ray)`), ray, target, view, pixel and β flag, and a colour behind it from
+    /// `background` (called in ray order after the draws).
     pub fn take(
         &self,
         step: u32,
@@ -180,8 +164,18 @@ impl RayPool {
         rays: &mut StepRays,
         mut background: impl FnMut(&mut Rng) -> [f32; 3],
     ) {
+        let w = self.window(step);
+        let n = self.groups.len() as u64;
+        let own = ((w.end - 1) % n) as u32;
+        let focus = self.groups[own as usize].focus;
+        let total = (w.end - w.start) * self.reach as u64;
         rays.clear();
-        self.draw(step, count, rng, &mut rays.pooled);
+        rays.pooled.extend((0..focus.min(count) as u32).map(|i| (own, i)));
+        rays.pooled.extend((0..count.saturating_sub(focus)).map(|_| {
+            let u = rng.below(total);
+            let slot = ((w.start + u / self.reach as u64) % n) as u32;
+            (slot, (self.groups[slot as usize].focus as u64 + u % self.reach as u64) as u32)
+        }));
         for &(g, k) in &rays.pooled {
             let r = &self.groups[g as usize].rays[k as usize];
             rays.rays.push(r.ray);
@@ -250,6 +244,8 @@ struct Filler {
     positions: Vec<Vec3>,
     raw: Vec<f32>,
     keep: Vec<u32>,
+    /// Whether each kept sample is inside the region.
+    inside: Vec<bool>,
     dirs: Vec<Vec3>,
     rgb_raw: Vec<[f32; 3]>,
     rays: Vec<PooledRay>,
@@ -257,65 +253,38 @@ struct Filler {
 }
 
 impl Filler {
-    /// Marches `ray` (of view `v`, pixel `p`) as the step does, segment by segment, evaluates
-    /// the background's density on each segment and stops once the transmittance of the
-    /// samples outside the region falls below [`EARLY_STOP_TRANSMITTANCE`]; then the
-    /// background's colour of the kept samples, and the ray's units.
+    /// Marches `ray` (of view `v`, pixel `p`) as the step does ([`march_in_segments`]),
+    /// evaluates the background's density on each segment and stops once the transmittance of
+    /// the samples outside the region is opaque ([`is_opaque`]); then the background's colour
+    /// of the kept samples, and the ray's units.
     fn add<P, C>(&mut self, x: &PoolInputs<P, C>, v: u32, p: u32, ray: Ray) {
-        let (occ, split) = (x.occupancy, x.split);
+        let split = x.split;
         let bg = split.frozen();
-        let (max, stride) = (occ.config().max_samples, x.cfg.frozen_stride);
         for b in [&mut self.t, &mut self.delta, &mut self.raw] {
             b.clear();
         }
         self.positions.clear();
         self.keep.clear();
-        if let Some(span) = occ.span(ray.origin, ray.dir) {
-            let mut t_out = 1.0f32;
-            let (mut next, mut taken, mut segment) = (0, 0u32, RAY_SEGMENT);
-            'march: loop {
-                let s0 = self.t.len();
-                let room = segment.min(max.saturating_sub(taken) as usize);
-                next = occ.march_segment(
-                    ray.origin,
-                    ray.dir,
-                    span,
-                    next..span.steps,
-                    room,
-                    stride,
-                    &mut self.t,
-                    &mut self.delta,
-                );
-                let count = self.t.len() - s0;
-                if count == 0 {
+        self.inside.clear();
+        let mut t_out = 1.0f32;
+        let (positions, raw, keep, inside, chunk) =
+            (&mut self.positions, &mut self.raw, &mut self.keep, &mut self.inside, &mut self.chunk);
+        march_in_segments(x.occupancy, &ray, x.cfg.frozen_stride, &mut self.t, &mut self.delta, |t, delta, seg| {
+            positions.extend(t[seg.clone()].iter().map(|&t| ray.at(t)));
+            raw.resize(seg.end, 0.0);
+            bg.field.chunk_density(x.isa, &bg.params, seg.start, &positions[seg.clone()], &mut raw[seg.clone()], chunk);
+            for i in seg {
+                if is_opaque(t_out) {
                     break;
                 }
-                taken += count as u32;
-                self.positions.extend(self.t[s0..].iter().map(|&t| ray.at(t)));
-                self.raw.resize(s0 + count, 0.0);
-                bg.field.chunk_density(
-                    x.isa,
-                    &bg.params,
-                    s0,
-                    &self.positions[s0..],
-                    &mut self.raw[s0..],
-                    &mut self.chunk,
-                );
-                for i in s0..s0 + count {
-                    if t_out < EARLY_STOP_TRANSMITTANCE {
-                        break 'march;
-                    }
-                    self.keep.push(i as u32);
-                    if !split.is_inside(self.positions[i]) {
-                        t_out *= transmitted(split.outside(self.raw[i], [0.0; 3]).0, self.delta[i]);
-                    }
+                keep.push(i as u32);
+                inside.push(split.is_inside(positions[i]));
+                if !inside[inside.len() - 1] {
+                    t_out *= transmitted(split.outside(raw[i], [0.0; 3]).0, delta[i]);
                 }
-                if t_out < EARLY_STOP_TRANSMITTANCE || next >= span.steps || taken >= max {
-                    break;
-                }
-                segment *= 2;
             }
-        }
+            is_opaque(t_out)
+        });
         let marched = self.t.len() as u32;
         let k = self.keep.len();
         self.rgb_raw.resize(k, [0.0; 3]);
@@ -330,7 +299,7 @@ impl Filler {
         for (j, &i) in self.keep.iter().enumerate() {
             let i = i as usize;
             let (t, delta, s, c) = (self.t[i], self.delta[i], self.raw[i], self.rgb_raw[j]);
-            if split.is_inside(self.positions[i]) {
+            if self.inside[j] {
                 flush_run(run.take(), &mut self.units);
                 self.units.push(Unit { t, delta, s, c, inside: true });
             } else {
@@ -341,13 +310,12 @@ impl Filler {
             }
         }
         flush_run(run, &mut self.units);
-        let unchanged = x.changed.get(v as usize).is_some_and(|b| b[p as usize / 64] >> (p % 64) & 1 == 0);
         self.rays.push(PooledRay {
             ray,
             target: x.views[v as usize].rgb[p as usize],
             view: v,
             pixel: p,
-            unchanged,
+            unchanged: is_unchanged(x.changed, v, p),
             units: (start as u32, (self.units.len() - start) as u32),
             marched,
         });

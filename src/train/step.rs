@@ -11,7 +11,7 @@ use super::pool::RayPool;
 use super::trainer::TrainConfig;
 use crate::field::model::FrozenOutside;
 use crate::field::model::Model;
-use crate::render::composite::{transmitted, EARLY_STOP_TRANSMITTANCE};
+use crate::render::composite::{is_opaque, transmitted};
 use crate::render::distortion::distortion_backward;
 use crate::render::{composite_ray, composite_ray_backward, OccupancyGrid, PackedSamples, Ray, RayAccumulator};
 use crate::simd::Isa;
@@ -65,6 +65,39 @@ pub const CHUNK_SAMPLES: usize = 128;
 /// Samples of a ray's first evaluated segment; each further segment doubles. A ray's
 /// densities are evaluated only up to the segment in which it turns opaque.
 pub const RAY_SEGMENT: usize = 128;
+
+/// Marches `r` through `occ` segment by segment ([`RAY_SEGMENT`] samples, doubling), appending
+/// each segment's samples to `t` and `delta` and handing `segment` the new samples' index range
+/// (with the arrays so far); stops after a segment for which it returns true (the ray turned
+/// opaque), at the end of the ray's span, or at the grid's sample budget. The segments
+/// concatenate to exactly the samples of marching the whole ray. The training step's rays and
+/// the ray pool's ([`super::pool`]) march this way.
+pub(super) fn march_in_segments(
+    occ: &OccupancyGrid,
+    r: &Ray,
+    stride: u32,
+    t: &mut Vec<f32>,
+    delta: &mut Vec<f32>,
+    mut segment: impl FnMut(&[f32], &[f32], std::ops::Range<usize>) -> bool,
+) {
+    let Some(span) = occ.span(r.origin, r.dir) else { return };
+    let max = occ.config().max_samples;
+    let (mut next, mut taken, mut len) = (0, 0u32, RAY_SEGMENT);
+    loop {
+        let s0 = t.len();
+        let room = len.min(max.saturating_sub(taken) as usize);
+        next = occ.march_segment(r.origin, r.dir, span, next..span.steps, room, stride, t, delta);
+        let count = t.len() - s0;
+        if count == 0 {
+            break;
+        }
+        taken += count as u32;
+        if segment(t, delta, s0..s0 + count) || next >= span.steps || taken >= max {
+            break;
+        }
+        len *= 2;
+    }
+}
 
 /// Ray `ray`'s composited colour `rgb` against its target (through its image's gain when gains
 /// are learned, adding the gain's gradient into `d_gain`): its squared error joins `loss` and,
@@ -126,6 +159,9 @@ pub(super) struct Worker<C> {
     units: UnitScratch,
 }
 
+/// [`UnitScratch::row`] of a run outside the region (no row of the model's).
+const OUTSIDE: u32 = u32::MAX;
+
 /// A chunk's pooled rays unit by unit ([`Worker::run_pooled`]): each ray's units up to its
 /// opaque point, and per kept row the background's values handed to the model.
 #[derive(Default)]
@@ -136,8 +172,8 @@ struct UnitScratch {
     delta: Vec<f32>,
     t: Vec<f32>,
     rgb: Vec<[f32; 3]>,
-    /// Each unit's kept row, or `u32::MAX` for a run.
-    kept: Vec<u32>,
+    /// Each unit's kept row, or [`OUTSIDE`] for a run.
+    row: Vec<u32>,
     d_sigma: Vec<f32>,
     d_rgb: Vec<[f32; 3]>,
     beta: Vec<f32>,
@@ -256,7 +292,7 @@ impl<C> Worker<C> {
             v.clear();
         }
         u.rgb.clear();
-        u.kept.clear();
+        u.row.clear();
         u.frozen_c.clear();
         let mut row = 0;
         for i in range.clone() {
@@ -264,27 +300,31 @@ impl<C> Worker<C> {
             let start = u.sigma.len() as u32;
             let mut transmittance = 1.0f32;
             for unit in pool.group(g).units_of(k as usize) {
-                let opaque = transmittance < EARLY_STOP_TRANSMITTANCE;
-                let (sigma, kept) = match (unit.inside, opaque) {
-                    (true, false) => (self.sigma[row], self.keep.len() as u32),
-                    (false, false) => (unit.s, u32::MAX),
-                    (_, true) => {
-                        row += unit.inside as usize;
-                        continue;
+                if is_opaque(transmittance) {
+                    // Past the opaque point: the ray's later inside rows are not composited.
+                    row += unit.inside as usize;
+                    continue;
+                }
+                let sigma = match unit.inside {
+                    true => {
+                        u.row.push(self.keep.len() as u32);
+                        u.rgb.push([0.0; 3]); // the model's colour, below
+                        self.keep.push(row as u32);
+                        self.dirs.push(rays.rays[i].dir);
+                        u.frozen_c.push(unit.c);
+                        row += 1;
+                        self.sigma[row - 1]
+                    }
+                    false => {
+                        u.row.push(OUTSIDE);
+                        u.rgb.push(unit.c);
+                        unit.s
                     }
                 };
-                if unit.inside {
-                    self.keep.push(row as u32);
-                    self.dirs.push(rays.rays[i].dir);
-                    u.frozen_c.push(unit.c);
-                    row += 1;
-                }
                 transmittance *= transmitted(sigma, unit.delta);
                 u.sigma.push(sigma);
                 u.delta.push(unit.delta);
                 u.t.push(unit.t);
-                u.rgb.push(unit.c);
-                u.kept.push(kept);
             }
             self.kept.push((start, u.sigma.len() as u32 - start));
         }
@@ -302,9 +342,9 @@ impl<C> Worker<C> {
                 &mut self.chunk,
             );
         }
-        for (c, &kept) in u.rgb.iter_mut().zip(&u.kept) {
-            if kept != u32::MAX {
-                *c = self.rgb[kept as usize];
+        for (c, &kr) in u.rgb.iter_mut().zip(&u.row) {
+            if kr != OUTSIDE {
+                *c = self.rgb[kr as usize];
             }
         }
         self.d_sigma.clear();
@@ -323,8 +363,8 @@ impl<C> Worker<C> {
             u.d_sigma.resize(count as usize, 0.0);
             u.d_rgb.resize(count as usize, [0.0; 3]);
             composite_ray_backward(sigma, delta, &u.rgb[r.clone()], &c, d_colour, &mut u.d_sigma, &mut u.d_rgb);
-            let kept = &u.kept[r.clone()];
-            for (j, &kr) in kept.iter().enumerate().filter(|(_, &kr)| kr != u32::MAX) {
+            let rows = &u.row[r.clone()];
+            for (j, &kr) in rows.iter().enumerate().filter(|(_, &kr)| kr != OUTSIDE) {
                 self.d_sigma[kr as usize] = u.d_sigma[j];
                 self.d_rgb[kr as usize] = u.d_rgb[j];
             }
@@ -332,11 +372,11 @@ impl<C> Worker<C> {
                 let (unchanged, entropy) = beta_weights(x, rays, ray);
                 if unchanged > 0.0 || entropy > 0.0 {
                     u.beta.clear();
-                    u.beta.extend(kept.iter().map(|&kr| if kr == u32::MAX { 0.0 } else { beta[kr as usize] }));
+                    u.beta.extend(rows.iter().map(|&kr| if kr == OUTSIDE { 0.0 } else { beta[kr as usize] }));
                     u.d_beta.clear();
-                    u.d_beta.resize(kept.len(), 0.0);
+                    u.d_beta.resize(rows.len(), 0.0);
                     beta_terms(sigma, delta, &u.beta, unchanged, entropy, &mut u.d_beta);
-                    for (&kr, &d) in kept.iter().zip(&u.d_beta).filter(|(&kr, _)| kr != u32::MAX) {
+                    for (&kr, &d) in rows.iter().zip(&u.d_beta).filter(|(&kr, _)| kr != OUTSIDE) {
                         d_beta[kr as usize] += d;
                     }
                 }
@@ -374,42 +414,28 @@ impl<C> Worker<C> {
     /// dropped unseen by compositing (nerfacc's early stop). Keeps the ray's samples up to its
     /// opaque point. The samples are exactly those of marching the whole ray.
     fn add_ray<M: Model<Chunk = C>>(&mut self, x: &StepInputs<M>, r: &Ray) {
-        let (occ, m) = (x.occupancy, &mut self.marched);
-        let (max, stride) = (occ.config().max_samples, x.cfg.frozen_stride);
+        let m = &mut self.marched;
         let start = m.t.len();
         let first_kept = self.keep.len() as u32;
-        if let Some(span) = occ.span(r.origin, r.dir) {
-            let mut acc = RayAccumulator::new();
-            let (mut next, mut taken, mut segment) = (0, 0u32, RAY_SEGMENT);
-            loop {
-                let s0 = m.t.len();
-                let room = segment.min(max.saturating_sub(taken) as usize);
-                next = occ.march_segment(r.origin, r.dir, span, next..span.steps, room, stride, &mut m.t, &mut m.delta);
-                let count = m.t.len() - s0;
-                if count == 0 {
-                    break;
-                }
-                taken += count as u32;
-                for &t in &m.t[s0..] {
-                    self.positions.push(r.at(t));
-                    self.dirs.push(r.dir);
-                }
-                self.sigma.resize(s0 + count, 0.0);
-                let (p, sigma) = (&self.positions[s0..], &mut self.sigma[s0..]);
-                x.model.chunk_density(x.isa, x.params, s0, p, sigma, &mut self.chunk);
-                for i in s0..s0 + count {
-                    if acc.is_opaque() {
-                        break;
-                    }
-                    acc.push(self.sigma[i], m.delta[i], 0.0, [0.0; 3]);
-                    self.keep.push(i as u32);
-                }
-                if acc.is_opaque() || next >= span.steps || taken >= max {
-                    break;
-                }
-                segment *= 2;
+        let mut acc = RayAccumulator::new();
+        let (positions, dirs, sigma, keep, chunk) =
+            (&mut self.positions, &mut self.dirs, &mut self.sigma, &mut self.keep, &mut self.chunk);
+        march_in_segments(x.occupancy, r, x.cfg.frozen_stride, &mut m.t, &mut m.delta, |t, delta, seg| {
+            for &t in &t[seg.clone()] {
+                positions.push(r.at(t));
+                dirs.push(r.dir);
             }
-        }
+            sigma.resize(seg.end, 0.0);
+            x.model.chunk_density(x.isa, x.params, seg.start, &positions[seg.clone()], &mut sigma[seg.clone()], chunk);
+            for i in seg {
+                if acc.is_opaque() {
+                    break;
+                }
+                acc.push(sigma[i], delta[i], 0.0, [0.0; 3]);
+                keep.push(i as u32);
+            }
+            acc.is_opaque()
+        });
         m.rays.push((start as u32, (m.t.len() - start) as u32));
         self.kept.push((first_kept, self.keep.len() as u32 - first_kept));
     }

@@ -144,6 +144,9 @@ pub const PIXEL_JITTER: bool = false;
 /// drawing fewer fresh ones (`--rays 512`) at the same time (docs/DECISIONS.md, "The ray pool").
 pub const RAY_POOL: u32 = 0;
 
+/// The largest [`TrainConfig::ray_pool`] the command line and checkpoints accept.
+pub const MAX_RAY_POOL: u32 = 1024;
+
 /// Default training steps: with [`TRAIN_RAYS`], about 2–3 minutes for 100 views of 200×200 on
 /// a 2-core machine (BENCHMARKS.md; docs/DECISIONS.md, "The engine").
 pub const TRAIN_STEPS: u32 = 1000;
@@ -571,28 +574,26 @@ impl<'a, M: Model> Trainer<'a, M> {
                 && cfg.near_gradient_distance == 0.0
                 && cfg.error_map.is_none()
         });
-        if let Some(split) = split {
-            let pool = pool.get_or_insert_with(|| RayPool::new(cfg.rays_per_step, focused, cfg.ray_pool));
-            let occupancy = &*occupancy;
-            pool.refresh(step, &PoolInputs { isa, split, occupancy, views, cfg, changed });
-            pool.take(step, cfg.rays_per_step, &mut srng, rays, |rng| match cfg.random_background {
-                true => std::array::from_fn(|_| rng.uniform(0.0, 1.0)),
-                false => cfg.background,
-            });
-        }
-        for r in (0..cfg.rays_per_step).filter(|_| split.is_none()) {
-            let errors = Some((&*tiles, &*sampler));
-            let (vi, p) = draw_pixel(views, cfg.focus.as_ref(), focused, errored, r, &mut srng, errors);
-            let v = &views[vi as usize];
-            rays.view.push(vi);
-            rays.pixel.push(p);
-            rays.unchanged.push(changed.get(vi as usize).is_some_and(|b| b[p as usize / 64] >> (p % 64) & 1 == 0));
-            rays.rays.push(ray_through(v, p, cfg.pixel_jitter, &mut srng));
-            rays.targets.push(v.rgb[p as usize]);
-            rays.backgrounds.push(match cfg.random_background {
-                true => std::array::from_fn(|_| srng.uniform(0.0, 1.0)),
-                false => cfg.background,
-            });
+        match split {
+            Some(split) => {
+                let pool = pool.get_or_insert_with(|| RayPool::new(cfg.rays_per_step, focused, cfg.ray_pool));
+                let occupancy = &*occupancy;
+                pool.refresh(step, &PoolInputs { isa, split, occupancy, views, cfg, changed });
+                pool.take(step, cfg.rays_per_step, &mut srng, rays, |rng| background_colour(cfg, rng));
+            }
+            None => {
+                for r in 0..cfg.rays_per_step {
+                    let errors = Some((&*tiles, &*sampler));
+                    let (vi, p) = draw_pixel(views, cfg.focus.as_ref(), focused, errored, r, &mut srng, errors);
+                    let v = &views[vi as usize];
+                    rays.view.push(vi);
+                    rays.pixel.push(p);
+                    rays.unchanged.push(is_unchanged(changed, vi, p));
+                    rays.rays.push(ray_through(v, p, cfg.pixel_jitter, &mut srng));
+                    rays.targets.push(v.rgb[p as usize]);
+                    rays.backgrounds.push(background_colour(cfg, &mut srng));
+                }
+            }
         }
         // 2. The fused pass: each slot's rays, chunk by chunk, marched, evaluated, composited
         //    and back-propagated to the networks' and the grids' feature gradients.
@@ -690,6 +691,21 @@ pub(super) fn draw_pixel(
             let v = &views[vi as usize];
             (vi, rng.below(v.intrinsics.width as u64 * v.intrinsics.height as u64) as u32)
         }
+    }
+}
+
+/// Whether pixel `p` of view `v` is one the β penalty takes as unchanged: not in the view's
+/// bitset of spared pixels (`changed`, one per view; none without a focus).
+pub(super) fn is_unchanged(changed: &[Vec<u64>], v: u32, p: u32) -> bool {
+    changed.get(v as usize).is_some_and(|b| b[p as usize / 64] >> (p % 64) & 1 == 0)
+}
+
+/// The colour behind a training ray: uniform random with [`TrainConfig::random_background`],
+/// else [`TrainConfig::background`].
+fn background_colour(cfg: &TrainConfig, rng: &mut Rng) -> [f32; 3] {
+    match cfg.random_background {
+        true => std::array::from_fn(|_| rng.uniform(0.0, 1.0)),
+        false => cfg.background,
     }
 }
 
