@@ -159,8 +159,31 @@ fn demo_writes_data_table_sheets_and_models_the_next_commands_read() {
     let (model, data) = (models.join("glass_residual.safetensors"), out.join("data/glass"));
     let (model_s, data_s) = (model.to_str().unwrap(), data.to_str().unwrap());
     run(&["eval", "--model", model_s, "--data", data_s]).unwrap();
+    run(&["eval", "--model", model_s, "--data", data_s, "--depth-only", "--json"]).unwrap();
     let render = dir.join("render");
     run(&["render", "--model", model_s, "--data", data_s, "--split", "test", "--out", render.to_str().unwrap()])
         .unwrap();
     assert!(render.read_dir().unwrap().count() > 0, "render wrote nothing");
+    let depth_only = dir.join("render_depth_only");
+    run(&["render", "--model", model_s, "--data", data_s, "--out", depth_only.to_str().unwrap(), "--depth-only"])
+        .unwrap();
+    let names: Vec<String> =
+        depth_only.read_dir().unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    assert!(names.iter().any(|n| n.ends_with("_depth.exr")) && names.iter().any(|n| n.ends_with("_points.ply")));
+    assert!(!names.iter().any(|n| n.ends_with("_rgb.png") || n.ends_with("_beta.png")), "{names:?}");
+    // The depth-only evaluation scores the same threshold depth as the full pass, without PSNR.
+    let model = residual_nerf::io::load_model(&model).unwrap();
+    let opts = residual_nerf::data::LoadOptions::default();
+    let data = residual_nerf::data::Dataset::load(&data, "test", &opts).unwrap();
+    let isa = residual_nerf::simd::Isa::detect();
+    let residual_nerf::io::LoadedModel::Residual(r) = &model else { panic!("the demo saves a residual model") };
+    let scene = residual_nerf::render::view::Scene::from(&**r);
+    let depth = residual_nerf::render::DepthMethod::default();
+    let eval = |depth_only| {
+        let crop = residual_nerf::eval::CropRule::Frame;
+        app::evaluate(isa, &scene, &data, depth, crop, None, opts.background, depth_only, |_| {})
+    };
+    let (full, fast) = (eval(false), eval(true));
+    assert!(full.depth.pixels > 0 && full.psnr.is_finite() && fast.psnr.is_nan());
+    assert_eq!((fast.depth, fast.regions), (full.depth, full.regions));
 }

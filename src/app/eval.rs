@@ -20,8 +20,10 @@ pub struct EvalReport {
     /// The same prediction inside each frame's own crop, scored on the object mask, the near
     /// crop (< `--limit`, default 1.5 m) and the crop without the object ([`DepthReport`]).
     pub regions: DepthReport,
-    /// Mean per-image PSNR (dB).
+    /// Mean per-image PSNR (dB); NaN for a depth-only evaluation.
     pub psnr: f64,
+    /// Whether only threshold depth was rendered (no colour pass, no PSNR).
+    pub depth_only: bool,
     /// Frames evaluated.
     pub frames: usize,
     /// Frames that had ground-truth depth.
@@ -41,12 +43,16 @@ impl EvalReport {
             "mae": num(self.depth.mae()), "rmse": num(self.depth.rmse()), "hole_rate": num(self.depth.hole_rate()),
             "psnr": num(self.psnr), "frames": self.frames, "frames_with_depth": self.frames_with_depth,
             "pixels": self.depth.pixels, "holes": self.depth.holes, "depth_kind": "z", "depth_unit": "m",
-            "depth_method": method, "regions": self.regions.to_json(),
+            "depth_method": method, "depth_only": self.depth_only, "regions": self.regions.to_json(),
         })
     }
 }
 
-/// Renders every view of `data` and scores it.
+/// Renders every view of `data` and scores it. `depth_only`: threshold depth alone through the
+/// depth-only path ([`ViewRenderer::depth`], the same depths as the full pass: every occupied
+/// cell marched, σ only, each ray stopped at its first solid sample), no colour and no PSNR;
+/// it needs `depth` to be a threshold.
+#[allow(clippy::too_many_arguments)]
 pub fn evaluate<M: Model>(
     isa: Isa,
     scene: &Scene<'_, M>,
@@ -55,8 +61,10 @@ pub fn evaluate<M: Model>(
     crop: CropRule,
     limit: Option<f32>,
     background: [f32; 3],
+    depth_only: bool,
     mut progress: impl FnMut(usize),
 ) -> EvalReport {
+    assert!(!(depth_only && depth == DepthMethod::Expected), "eval: expected depth needs the colour pass");
     let m = depth.threshold();
     let mut renderer = ViewRenderer::<M>::new();
     let mut errors = DepthErrors::default();
@@ -66,12 +74,17 @@ pub fn evaluate<M: Model>(
     for (i, (v, f)) in data.views.iter().zip(&data.frames).enumerate() {
         let k = &v.intrinsics;
         let n = (k.width * k.height) as usize;
-        rgb.resize(n, [0.0; 3]);
-        expected.resize(n, 0.0);
         threshold.resize(n, 0.0);
-        let out = FullOutputs { rgb: &mut rgb, expected_z: &mut expected, threshold_z: &mut threshold, beta: &mut [] };
-        renderer.full(isa, scene, k, &v.pose, background, m, out);
-        psnr_sum += psnr(mse(&rgb, &v.rgb));
+        if depth_only {
+            renderer.depth(isa, scene, k, &v.pose, m, &mut threshold);
+        } else {
+            rgb.resize(n, [0.0; 3]);
+            expected.resize(n, 0.0);
+            let out =
+                FullOutputs { rgb: &mut rgb, expected_z: &mut expected, threshold_z: &mut threshold, beta: &mut [] };
+            renderer.full(isa, scene, k, &v.pose, background, m, out);
+            psnr_sum += psnr(mse(&rgb, &v.rgb));
+        }
         if let Some(gt) = &f.depth {
             let pred = if depth == DepthMethod::Expected { &expected } else { &threshold };
             errors.add_frame(pred, gt, k.width, crop_box(crop, k.width, k.height, f.crop), limit);
@@ -84,12 +97,14 @@ pub fn evaluate<M: Model>(
     EvalReport {
         depth: errors,
         regions,
-        psnr: psnr_sum / data.views.len() as f64,
+        psnr: if depth_only { f64::NAN } else { psnr_sum / data.views.len() as f64 },
+        depth_only,
         frames: data.views.len(),
         frames_with_depth: with_depth,
     }
 }
 
+#[allow(clippy::too_many_arguments)]
 pub(super) fn run(
     model: &Path,
     data_dir: &Path,
@@ -98,6 +113,7 @@ pub(super) fn run(
     crop: CropRule,
     limit: Option<f32>,
     json: bool,
+    depth_only: bool,
 ) -> Result<(), String> {
     let model = load_model(model)?;
     let opts = LoadOptions::default();
@@ -106,22 +122,26 @@ pub(super) fn run(
     let tick = |i: usize| progress.update(i as u64, "views rendered");
     let isa = Isa::detect();
     let report = match &model {
-        LoadedModel::Nerf(n) => evaluate(isa, &Scene::from(&**n), &data, depth, crop, limit, opts.background, tick),
-        LoadedModel::Residual(r) => evaluate(isa, &Scene::from(&**r), &data, depth, crop, limit, opts.background, tick),
+        LoadedModel::Nerf(n) => {
+            evaluate(isa, &Scene::from(&**n), &data, depth, crop, limit, opts.background, depth_only, tick)
+        }
+        LoadedModel::Residual(r) => {
+            evaluate(isa, &Scene::from(&**r), &data, depth, crop, limit, opts.background, depth_only, tick)
+        }
     };
     if json {
         println!("{}", report.to_json(depth));
     } else {
         let d = &report.depth;
+        let psnr = if depth_only { String::new() } else { format!("  PSNR {:.2} dB", report.psnr) };
         println!(
-            "{} frames ({} with depth), {} scored pixels: depth MAE {:.4} m  RMSE {:.4} m  holes {:.2}%  PSNR {:.2} dB",
+            "{} frames ({} with depth), {} scored pixels: depth MAE {:.4} m  RMSE {:.4} m  holes {:.2}%{psnr}",
             report.frames,
             report.frames_with_depth,
             d.pixels,
             d.mae(),
             d.rmse(),
             100.0 * d.hole_rate(),
-            report.psnr
         );
         let (o, n) = (&report.regions.object, &report.regions.near);
         if o.pixels > 0 {

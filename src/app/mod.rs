@@ -77,13 +77,13 @@ pub fn run(command: Command) -> Result<(), Failure> {
             set_threads(args.threads)?;
             train::run(&args)?;
         }
-        Command::Render { model, data, out, split, depth, threads } => {
+        Command::Render { model, data, out, split, depth, depth_only, threads } => {
             set_threads(threads)?;
-            render::run(&model, &data, &split, depth, &out)?;
+            render::run(&model, &data, &split, depth, depth_only, &out)?;
         }
-        Command::Eval { model, data, split, depth, crop, limit, json, threads } => {
+        Command::Eval { model, data, split, depth, crop, limit, json, depth_only, threads } => {
             set_threads(threads)?;
-            eval::run(&model, &data, &split, depth, crop, limit, json)?;
+            eval::run(&model, &data, &split, depth, crop, limit, json, depth_only)?;
         }
         Command::Bench { json, reps, log2t, threads, models, data } => {
             set_threads(threads)?;

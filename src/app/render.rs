@@ -1,6 +1,7 @@
 //! `rnerf render`: depth (EXR metres, 16-bit PNG mm, .npy metres, colourised PNG), a coloured
 //! world-frame point cloud (PLY), RGB and the camera of every view of a split, into an output
-//! folder.
+//! folder; with `--depth-only`, threshold depth through the depth-only path (no colour pass):
+//! the depth files, an uncoloured point cloud and the camera.
 
 use super::Progress;
 use crate::data::{Dataset, LoadOptions};
@@ -13,7 +14,14 @@ use crate::render::{FullOutputs, ViewRenderer};
 use crate::simd::Isa;
 use std::path::Path;
 
-pub(super) fn run(model: &Path, data_dir: &Path, split: &str, depth: DepthMethod, out: &Path) -> Result<(), String> {
+pub(super) fn run(
+    model: &Path,
+    data_dir: &Path,
+    split: &str,
+    depth: DepthMethod,
+    depth_only: bool,
+    out: &Path,
+) -> Result<(), String> {
     if out.exists() && !out.is_dir() {
         return Err(format!("{}: --out: not a directory", out.display()));
     }
@@ -23,16 +31,20 @@ pub(super) fn run(model: &Path, data_dir: &Path, split: &str, depth: DepthMethod
     // Created once the inputs have been read and checked, so a bad input leaves nothing behind.
     std::fs::create_dir_all(out).map_err(|e| format!("{}: --out: cannot create: {e}", out.display()))?;
     match &model {
-        LoadedModel::Nerf(n) => render_all(&Scene::from(&**n), &data, depth, out, opts.background, false),
-        LoadedModel::Residual(r) => render_all(&Scene::from(&**r), &data, depth, out, opts.background, true),
+        LoadedModel::Nerf(n) => render_all(&Scene::from(&**n), &data, depth, depth_only, out, opts.background, false),
+        LoadedModel::Residual(r) => {
+            render_all(&Scene::from(&**r), &data, depth, depth_only, out, opts.background, true)
+        }
     }
 }
 
-/// Renders and writes every view; `beta`: also `<name>_beta.png` (where the scene changed).
+/// Renders and writes every view; `beta`: also `<name>_beta.png` (where the scene changed);
+/// `depth_only`: threshold depth alone (no RGB, β or point colours).
 fn render_all<M: Model>(
     scene: &Scene<'_, M>,
     data: &Dataset,
     depth: DepthMethod,
+    depth_only: bool,
     out: &Path,
     background: [f32; 3],
     beta: bool,
@@ -44,11 +56,19 @@ fn render_all<M: Model>(
     for (i, (v, f)) in data.views.iter().zip(&data.frames).enumerate() {
         let k = &v.intrinsics;
         let n = (k.width * k.height) as usize;
-        let (mut rgb, mut expected, mut threshold) = (vec![[0.0; 3]; n], vec![0.0; n], vec![0.0; n]);
-        let mut b = if beta { vec![0.0; n] } else { Vec::new() };
-        let outputs =
-            FullOutputs { rgb: &mut rgb, expected_z: &mut expected, threshold_z: &mut threshold, beta: &mut b };
-        renderer.full(isa, scene, k, &v.pose, background, m, outputs);
+        let mut threshold = vec![0.0; n];
+        let (mut rgb, mut expected, mut b) = (Vec::new(), Vec::new(), Vec::new());
+        if depth_only {
+            renderer.depth(isa, scene, k, &v.pose, m, &mut threshold);
+        } else {
+            (rgb, expected) = (vec![[0.0; 3]; n], vec![0.0; n]);
+            if beta {
+                b = vec![0.0; n];
+            }
+            let outputs =
+                FullOutputs { rgb: &mut rgb, expected_z: &mut expected, threshold_z: &mut threshold, beta: &mut b };
+            renderer.full(isa, scene, k, &v.pose, background, m, outputs);
+        }
         let z = if depth == DepthMethod::Expected { &expected } else { &threshold };
         let stem =
             f.image_path.file_stem().map_or_else(|| format!("frame_{}", f.index), |s| s.to_string_lossy().into_owned());
@@ -59,9 +79,12 @@ fn render_all<M: Model>(
         export::write(&file("_depth_mm.png"), export::depth_png_mm_bytes(z, w, h))?;
         export::write(&file("_depth.npy"), Ok(export::depth_npy_bytes(z, w, h)))?;
         export::write(&file("_depth_vis.png"), export::depth_vis_png_bytes(z, w, h, near, far))?;
-        export::write(&file("_rgb.png"), export::rgb_png_bytes(&rgb, w, h))?;
-        export::write(&file("_points.ply"), Ok(export::depth_ply_bytes(z, k, &v.pose, Some(&rgb))))?;
-        if beta {
+        let colours = (!depth_only).then_some(&rgb[..]);
+        if let Some(rgb) = colours {
+            export::write(&file("_rgb.png"), export::rgb_png_bytes(rgb, w, h))?;
+        }
+        export::write(&file("_points.ply"), Ok(export::depth_ply_bytes(z, k, &v.pose, colours)))?;
+        if beta && !depth_only {
             let grey: Vec<[f32; 3]> = b.iter().map(|&x| [x; 3]).collect();
             export::write(&file("_beta.png"), export::rgb_png_bytes(&grey, w, h))?;
         }

@@ -26,6 +26,8 @@ pub enum Command {
         split: String,
         /// Depth method (`--depth`, `--m`, `--m-raw`).
         depth: DepthMethod,
+        /// Threshold depth alone: no colour, β or expected depth (`--depth-only`).
+        depth_only: bool,
         /// Worker threads (`--threads`).
         threads: Option<usize>,
     },
@@ -45,6 +47,8 @@ pub enum Command {
         limit: Option<f32>,
         /// One JSON object on stdout (`--json`).
         json: bool,
+        /// Threshold depth alone, no colour pass and no PSNR (`--depth-only`).
+        depth_only: bool,
         /// Worker threads (`--threads`).
         threads: Option<usize>,
     },

@@ -58,6 +58,7 @@ pub(super) const FLAGS: &[Flag] = &[
     Flag { name: "registration-passes", commands: &["train"], setting: true },
     Flag { name: "model", commands: &["render", "eval", "import", "bench"], setting: false },
     Flag { name: "depth", commands: &["render", "eval"], setting: false },
+    Flag { name: "depth-only", commands: &["render", "eval"], setting: false },
     Flag { name: "m", commands: &["render", "eval", "compare"], setting: false },
     Flag { name: "m-raw", commands: &["render", "eval", "compare"], setting: false },
     Flag { name: "crop", commands: &["eval"], setting: false },
@@ -97,6 +98,7 @@ pub(super) struct Flags {
     pub(super) crop: Option<CropRule>,
     pub(super) limit: Option<f32>,
     pub(super) json: bool,
+    pub(super) depth_only: bool,
     pub(super) background: Option<PathBuf>,
     pub(super) mix: Option<String>,
     pub(super) density_mix: Option<String>,
@@ -273,6 +275,7 @@ impl Flags {
                 }
             }
             "json" => self.json = true,
+            "depth-only" => self.depth_only = true,
             "fixed-background" => self.fixed_background = true,
             "data" => self.data = Some(path(p, name)?),
             "out" => self.out = Some(path(p, name)?),
@@ -449,6 +452,9 @@ impl Flags {
         match self.depth.as_deref() {
             Some("expected") if self.m.is_some() || self.m_raw.is_some() => {
                 Err(err("--m / --m-raw apply to --depth threshold, not expected"))
+            }
+            Some("expected") if self.depth_only => {
+                Err(err("--depth-only renders threshold depth alone; --depth expected needs the colour pass"))
             }
             Some("expected") => Ok(DepthMethod::Expected),
             _ => Ok(DepthMethod::Threshold(match self.m_raw {

@@ -114,6 +114,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             out: f.need_path("out", &command)?,
             split: f.split.clone().unwrap_or_else(|| "test".into()),
             depth: f.depth()?,
+            depth_only: f.depth_only,
             threads,
         },
         "eval" => Command::Eval {
@@ -124,6 +125,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             crop: f.crop.unwrap_or(CropRule::Frame),
             limit: f.limit,
             json: f.json,
+            depth_only: f.depth_only,
             threads,
         },
         "compare" => Command::Compare(CompareArgs {
@@ -242,6 +244,8 @@ mod tests {
             ("eval --model m --data d --m nan", "--m: NaN is outside"),
             ("eval --model m --data d --crop huge", "--crop: 'huge'"),
             ("render --model m --data d --out o --depth median", "--depth: 'median'"),
+            ("eval --model m --data d --depth expected --depth-only", "--depth expected needs the colour pass"),
+            ("compare --background b --scene s --out o --depth-only", "unexpected argument '--depth-only'"),
             ("train --data d --out m --split ../x", "--split"),
             ("train --data d --out m --mix sum", "need --background"),
             ("train --data d --out m --background b --mix sum --density-mix raw", "applies to --mix mixnet"),

@@ -35,12 +35,14 @@ commands:
          [--checkpoint-every N]
          continue an interrupted run bit-exactly, with the checkpoint's settings, on the same data
   render --model MODEL --data DIR --out DIR [--split NAME] [--depth threshold|expected]
-         [--m M | --m-raw S] [--threads N]
+         [--m M | --m-raw S] [--depth-only] [--threads N]
          depth (EXR metres, 16-bit PNG mm, .npy metres, colourised PNG), PLY point cloud (world
-         frame) and RGB of the split's views
+         frame) and RGB of the split's views (--depth-only: threshold depth and an uncoloured
+         point cloud, without the colour pass)
   eval   --model MODEL --data DIR [--split NAME] [--depth threshold|expected] [--m M | --m-raw S]
-         [--crop frame|full|HALF] [--limit METRES] [--json] [--threads N]
-         depth MAE / RMSE / hole rate inside the crops, and PSNR (default split: test)
+         [--crop frame|full|HALF] [--limit METRES] [--json] [--depth-only] [--threads N]
+         depth MAE / RMSE / hole rate inside the crops, and PSNR (default split: test;
+         --depth-only: the same threshold-depth figures without the colour pass, no PSNR)
   compare --background DIR --scene DIR [--scene DIR ...] --out DIR [--background-model MODEL]
          [--methods dex,finetune,residual-paper,residual,...] [--scene-views N] [--steps N] [--rays N]
          [--log2t N] [--seed S] [--eval-every N] [--m M | --m-raw S] [--m-sweep M,M,...] [--threads N]
