@@ -181,7 +181,8 @@ fn demo_writes_data_table_sheets_and_models_the_next_commands_read() {
     let depth = residual_nerf::render::DepthMethod::default();
     let eval = |depth_only| {
         let crop = residual_nerf::eval::CropRule::Frame;
-        app::evaluate(isa, &scene, &data, depth, crop, None, opts.background, depth_only, |_| {})
+        let eval = app::EvalOptions { depth, crop, limit: None, background: opts.background, depth_only };
+        app::evaluate(isa, &scene, &data, &eval, |_| {})
     };
     let (full, fast) = (eval(false), eval(true));
     assert!(full.depth.pixels > 0 && full.psnr.is_finite() && fast.psnr.is_nan());

@@ -48,22 +48,32 @@ impl EvalReport {
     }
 }
 
-/// Renders every view of `data` and scores it. `depth_only`: threshold depth alone through the
-/// depth-only path ([`ViewRenderer::depth`], the same depths as the full pass: every occupied
-/// cell marched, σ only, each ray stopped at its first solid sample), no colour and no PSNR;
-/// it needs `depth` to be a threshold.
-#[allow(clippy::too_many_arguments)]
+/// What [`evaluate`] renders and how it scores it (`rnerf eval`'s flags).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EvalOptions {
+    /// The depth scored (`--depth`, `--m`, `--m-raw`).
+    pub depth: DepthMethod,
+    /// The scoring crop of the whole-frame figures (`--crop`).
+    pub crop: CropRule,
+    /// Score only ground truth nearer than this (`--limit`, metres).
+    pub limit: Option<f32>,
+    /// Colour behind the scene (the dataset loader's).
+    pub background: [f32; 3],
+    /// Threshold depth alone through the depth-only path ([`ViewRenderer::depth`]: the same
+    /// depths as the full pass, every occupied cell marched, σ only, each ray stopped at its
+    /// first solid sample), no colour and no PSNR (`--depth-only`); needs a threshold `depth`.
+    pub depth_only: bool,
+}
+
+/// Renders every view of `data` and scores it.
 pub fn evaluate<M: Model>(
     isa: Isa,
     scene: &Scene<'_, M>,
     data: &Dataset,
-    depth: DepthMethod,
-    crop: CropRule,
-    limit: Option<f32>,
-    background: [f32; 3],
-    depth_only: bool,
+    opts: &EvalOptions,
     mut progress: impl FnMut(usize),
 ) -> EvalReport {
+    let EvalOptions { depth, crop, limit, background, depth_only } = *opts;
     assert!(!(depth_only && depth == DepthMethod::Expected), "eval: expected depth needs the colour pass");
     let m = depth.threshold();
     let mut renderer = ViewRenderer::<M>::new();
@@ -104,7 +114,6 @@ pub fn evaluate<M: Model>(
     }
 }
 
-#[allow(clippy::too_many_arguments)]
 pub(super) fn run(
     model: &Path,
     data_dir: &Path,
@@ -118,16 +127,13 @@ pub(super) fn run(
     let model = load_model(model)?;
     let opts = LoadOptions::default();
     let data = crate::app::load_data(data_dir, split, &opts)?;
+    let eval = EvalOptions { depth, crop, limit, background: opts.background, depth_only };
     let mut progress = Progress::new("eval", data.views.len() as u64);
     let tick = |i: usize| progress.update(i as u64, "views rendered");
     let isa = Isa::detect();
     let report = match &model {
-        LoadedModel::Nerf(n) => {
-            evaluate(isa, &Scene::from(&**n), &data, depth, crop, limit, opts.background, depth_only, tick)
-        }
-        LoadedModel::Residual(r) => {
-            evaluate(isa, &Scene::from(&**r), &data, depth, crop, limit, opts.background, depth_only, tick)
-        }
+        LoadedModel::Nerf(n) => evaluate(isa, &Scene::from(&**n), &data, &eval, tick),
+        LoadedModel::Residual(r) => evaluate(isa, &Scene::from(&**r), &data, &eval, tick),
     };
     if json {
         println!("{}", report.to_json(depth));

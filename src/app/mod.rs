@@ -9,7 +9,7 @@ mod render;
 mod train;
 
 pub use compare::{compare_and_write, demo_config, train_background, SceneData, DEMO};
-pub use eval::{evaluate, EvalReport};
+pub use eval::{evaluate, EvalOptions, EvalReport};
 pub use progress::Progress;
 pub use train::checkpoint_path;
 
