@@ -51,6 +51,7 @@ fn render_all<M: Model>(
 ) -> Result<(), String> {
     let isa = Isa::detect();
     let m = depth.threshold();
+    let beta = beta && !depth_only;
     let mut renderer = ViewRenderer::<M>::new();
     let mut progress = Progress::new("render", data.views.len() as u64);
     for (i, (v, f)) in data.views.iter().zip(&data.frames).enumerate() {
@@ -84,7 +85,7 @@ fn render_all<M: Model>(
             export::write(&file("_rgb.png"), export::rgb_png_bytes(rgb, w, h))?;
         }
         export::write(&file("_points.ply"), Ok(export::depth_ply_bytes(z, k, &v.pose, colours)))?;
-        if beta && !depth_only {
+        if beta {
             let grey: Vec<[f32; 3]> = b.iter().map(|&x| [x; 3]).collect();
             export::write(&file("_beta.png"), export::rgb_png_bytes(&grey, w, h))?;
         }

@@ -277,9 +277,10 @@ impl Filler {
                 if is_opaque(t_out) {
                     break;
                 }
+                let is_in = split.is_inside(positions[i]);
                 keep.push(i as u32);
-                inside.push(split.is_inside(positions[i]));
-                if !inside[inside.len() - 1] {
+                inside.push(is_in);
+                if !is_in {
                     t_out *= transmitted(split.outside(raw[i], [0.0; 3]).0, delta[i]);
                 }
             }

@@ -305,21 +305,18 @@ impl<C> Worker<C> {
                     row += unit.inside as usize;
                     continue;
                 }
-                let sigma = match unit.inside {
-                    true => {
-                        u.row.push(self.keep.len() as u32);
-                        u.rgb.push([0.0; 3]); // the model's colour, below
-                        self.keep.push(row as u32);
-                        self.dirs.push(rays.rays[i].dir);
-                        u.frozen_c.push(unit.c);
-                        row += 1;
-                        self.sigma[row - 1]
-                    }
-                    false => {
-                        u.row.push(OUTSIDE);
-                        u.rgb.push(unit.c);
-                        unit.s
-                    }
+                let sigma = if unit.inside {
+                    u.row.push(self.keep.len() as u32);
+                    u.rgb.push([0.0; 3]); // the model's colour, below
+                    self.keep.push(row as u32);
+                    self.dirs.push(rays.rays[i].dir);
+                    u.frozen_c.push(unit.c);
+                    row += 1;
+                    self.sigma[row - 1]
+                } else {
+                    u.row.push(OUTSIDE);
+                    u.rgb.push(unit.c);
+                    unit.s
                 };
                 transmittance *= transmitted(sigma, unit.delta);
                 u.sigma.push(sigma);
