@@ -141,6 +141,7 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
     cfg.near_gradient_distance = a.near_grad.unwrap_or(cfg.near_gradient_distance);
     cfg.random_background &= a.random_bg.unwrap_or(true);
     cfg.frozen_stride = a.frozen_stride.unwrap_or(cfg.frozen_stride);
+    cfg.frozen_tail = a.frozen_tail.unwrap_or(cfg.frozen_tail);
     cfg.ray_pool = a.ray_pool.unwrap_or(cfg.ray_pool);
     cfg.image_gains = a.image_gains;
     cfg.error_map = a.error_map;
@@ -366,6 +367,7 @@ fn run_metadata(
         ("train_random_background", cfg.random_background.to_string()),
         ("train_near_gradient_distance", cfg.near_gradient_distance.to_string()),
         ("train_frozen_stride", cfg.frozen_stride.to_string()),
+        ("train_frozen_tail", cfg.frozen_tail.to_string()),
         ("train_ray_pool", cfg.ray_pool.to_string()),
         ("train_image_gains", cfg.image_gains.map_or("off".into(), |l| format!("on (prior {l})"))),
         ("train_error_map", cfg.error_map.map_or("off".into(), |s| format!("share {s}"))),

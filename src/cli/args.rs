@@ -141,6 +141,9 @@ pub struct TrainArgs {
     /// Lattice steps per training sample outside a residual model's change region
     /// (`--frozen-stride N`).
     pub frozen_stride: Option<u32>,
+    /// The transmittance below which a training ray past a residual model's change region
+    /// stops (`--frozen-tail T`).
+    pub frozen_tail: Option<f32>,
     /// Times each pooled training ray of a residual model is drawn (`--ray-pool N`; 0 or 1:
     /// every ray fresh).
     pub ray_pool: Option<u32>,
@@ -196,6 +199,9 @@ pub struct CompareArgs {
     /// Lattice steps per training sample outside a residual model's change region
     /// (`--frozen-stride N`).
     pub frozen_stride: Option<u32>,
+    /// The transmittance below which a training ray past a residual model's change region
+    /// stops (`--frozen-tail T`).
+    pub frozen_tail: Option<f32>,
     /// Times each pooled training ray of a residual model is drawn (`--ray-pool N`; 0 or 1:
     /// every ray fresh).
     pub ray_pool: Option<u32>,

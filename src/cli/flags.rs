@@ -49,6 +49,7 @@ pub(super) const FLAGS: &[Flag] = &[
     Flag { name: "focus-share", commands: &["train", "compare"], setting: true },
     Flag { name: "region-vote", commands: &["train", "compare"], setting: true },
     Flag { name: "frozen-stride", commands: &["train", "compare"], setting: true },
+    Flag { name: "frozen-tail", commands: &["train", "compare"], setting: true },
     Flag { name: "ray-pool", commands: &["train", "compare"], setting: true },
     Flag { name: "image-gains", commands: &["train", "compare"], setting: true },
     Flag { name: "error-map", commands: &["train"], setting: true },
@@ -127,6 +128,7 @@ pub(super) struct Flags {
     pub(super) pose_registration: Option<bool>,
     pub(super) registration_passes: Option<u32>,
     pub(super) frozen_stride: Option<u32>,
+    pub(super) frozen_tail: Option<f32>,
     pub(super) ray_pool: Option<u32>,
     /// `--image-gains on`: the identity prior's weight; off or not given: `None`.
     pub(super) image_gains: Option<f32>,
@@ -205,6 +207,13 @@ impl Flags {
                     return Err(err(format!("--frozen-stride: {n} is outside 1..=64")));
                 }
                 self.frozen_stride = Some(n);
+            }
+            "frozen-tail" => {
+                let v: f32 = number(p, name)?;
+                if !(0.0..=0.5).contains(&v) {
+                    return Err(err(format!("--frozen-tail: {v} is outside [0, 0.5]")));
+                }
+                self.frozen_tail = Some(v);
             }
             "ray-pool" => {
                 let max = crate::train::trainer::MAX_RAY_POOL;

@@ -163,6 +163,8 @@ pub trait FrozenOutside<P, C>: Sync {
     fn frozen(&self) -> &crate::field::Nerf;
     /// Whether `p` is inside the region (where the parameters matter).
     fn is_inside(&self, p: Vec3) -> bool;
+    /// A box holding the whole region (its cells' bounding box); `None` for an empty region.
+    fn region_bounds(&self) -> Option<crate::geometry::Aabb>;
     /// Activated density and colour of a sample outside the region from the frozen NeRF's raw
     /// density `s` and pre-sigmoid colour `c`: the same bits as the model's chunk path gives it.
     fn outside(&self, s: f32, c: [f32; 3]) -> (f32, [f32; 3]);

@@ -36,6 +36,8 @@ pub struct ResidualField {
     mixnet: Mixnet,
     kind: MixKind,
     region: Option<ChangeRegion>,
+    /// The region's cells' bounding box ([`ChangeRegion::bounds`]), kept with it.
+    region_bounds: Option<crate::geometry::Aabb>,
     /// `(σ, ln σ)` at and above which the background is solid: there the mix keeps the
     /// background's density and mixes colour only ([`ResidualField::with_solid_background`]).
     solid: Option<(f32, f32)>,
@@ -160,7 +162,15 @@ impl ResidualField {
         );
         let residual = NerfField::new(config.residual);
         let mixnet = Mixnet::new(residual.config().aabb, config.mixnet, residual.encoding_width());
-        ResidualField { background, residual, mixnet, kind: config.kind, region: None, solid: None }
+        ResidualField {
+            background,
+            residual,
+            mixnet,
+            kind: config.kind,
+            region: None,
+            region_bounds: None,
+            solid: None,
+        }
     }
 
     /// The field with colour-only mixing where the background is solid (σ_bg ≥ `sigma`): there
@@ -201,6 +211,7 @@ impl ResidualField {
     pub fn with_region(mut self, region: ChangeRegion) -> ResidualField {
         assert!(matches!(self.kind, MixKind::Mixnet(_)), "residual: a change region needs a Mixnet's β");
         assert_eq!(*region.aabb(), self.residual.config().aabb, "residual: region box differs from the scene box");
+        self.region_bounds = region.bounds();
         self.region = Some(region);
         self
     }
@@ -684,6 +695,10 @@ impl FrozenOutside<ResidualParams, ResidualChunk> for ResidualField {
 
     fn is_inside(&self, p: Vec3) -> bool {
         self.in_region(p)
+    }
+
+    fn region_bounds(&self) -> Option<crate::geometry::Aabb> {
+        self.region_bounds
     }
 
     /// The mix at β = 0 with the residual's inputs set to the background's, exactly as

@@ -112,6 +112,22 @@ impl ChangeRegion {
         out
     }
 
+    /// The smallest box holding every cell of the region; `None` when it is empty.
+    pub fn bounds(&self) -> Option<Aabb> {
+        let r = self.resolution as usize;
+        let cell = self.aabb.size() / self.resolution as f32;
+        let (mut lo, mut hi) = ([usize::MAX; 3], [0usize; 3]);
+        for i in self.cells() {
+            let c = [i as usize % r, (i as usize / r) % r, i as usize / (r * r)];
+            for a in 0..3 {
+                lo[a] = lo[a].min(c[a]);
+                hi[a] = hi[a].max(c[a] + 1);
+            }
+        }
+        let corner = |c: [usize; 3]| self.aabb.min + Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32) * cell;
+        (lo[0] != usize::MAX).then(|| Aabb { min: corner(lo), max: corner(hi) })
+    }
+
     /// The region's volume (scene units cubed).
     pub fn volume(&self) -> f64 {
         let cell = self.aabb.size() / self.resolution as f32;
@@ -138,6 +154,20 @@ mod tests {
 
     fn unit_box() -> Aabb {
         Aabb { min: Vec3::ZERO, max: Vec3::ONE }
+    }
+
+    #[test]
+    fn bounds_are_the_box_of_its_cells() {
+        assert_eq!(ChangeRegion::empty(unit_box(), 4).bounds(), None);
+        // Cells (1, 2, 3) and (2, 0, 3) of a 4³ grid over the unit cube.
+        let r = ChangeRegion::from_cells(unit_box(), 4, &[1 + 4 * (2 + 4 * 3), 2 + 4 * (4 * 3)]).unwrap();
+        let b = r.bounds().unwrap();
+        assert_eq!(b.min, Vec3::new(0.25, 0.0, 0.75));
+        assert_eq!(b.max, Vec3::new(0.75, 0.75, 1.0));
+        for c in r.cells() {
+            let p = r.cell_centre(c as usize);
+            assert!(p.cmpge(b.min).all() && p.cmple(b.max).all());
+        }
     }
 
     #[test]

@@ -339,6 +339,7 @@ pub fn train_config_json(c: &TrainConfig) -> Value {
         "beta_unchanged": c.beta.unchanged, "beta_entropy": c.beta.entropy, "beta_entropy_from": c.beta.entropy_from,
         "frozen_stride": c.frozen_stride, "image_gains": c.image_gains, "error_map": c.error_map,
         "pixel_jitter": c.pixel_jitter, "ray_pool": c.ray_pool,
+        "frozen_tail": c.frozen_tail,
     })
 }
 
@@ -395,6 +396,8 @@ pub fn parse_train_config(v: &Value, occupancy: OccupancyConfig) -> Result<Train
             entropy: optional(v, "beta_entropy", 1e6)?,
             entropy_from: optional(v, "beta_entropy_from", 1.0)?,
         },
+        // Added later: absent means off (how they were trained).
+        frozen_tail: optional(v, "frozen_tail", 0.5)?,
         // Added after the first checkpoints: absent means every step (how they were trained).
         frozen_stride: match v.get("frozen_stride") {
             None => 1,

@@ -109,6 +109,12 @@ impl RayAccumulator {
         is_opaque(self.acc.transmittance)
     }
 
+    /// The light still passing after the samples pushed so far.
+    #[inline]
+    pub fn transmittance(&self) -> f32 {
+        self.acc.transmittance
+    }
+
     /// Adds the next sample (activated density and colour); returns its weight `w = T·α`.
     #[inline]
     pub fn push(&mut self, sigma: f32, delta: f32, t: f32, rgb: [f32; 3]) -> f32 {

@@ -357,12 +357,14 @@ mod tests {
     use crate::train::trainer::Focus;
     use std::sync::Arc;
 
-    /// A pooled step's loss and gradients are those of marching the same rays fresh: the runs
-    /// outside the region composited once and the background's values handed in change only
-    /// the rounding. A random background and residual over the tabletop scene, a change region
-    /// of 4³ cells at its centre, β penalty on.
-    #[test]
-    fn a_pooled_step_has_the_loss_and_gradients_of_the_same_rays_marched_fresh() {
+    /// A random background and residual over the tabletop scene, a change region of 4³ cells at
+    /// its centre, β penalty on, and 128 rays drawn from a pool refreshed twice; `check` gets
+    /// the step's inputs, the rays and a function running them (pooled or fresh, with a
+    /// configuration) to the step's loss, kept samples and gradients per group.
+    #[allow(clippy::type_complexity)]
+    fn frozen_outside_step(
+        check: impl FnOnce(&StepRays, &dyn Fn(bool, &TrainConfig) -> (f64, usize, Vec<Vec<f32>>), &TrainConfig),
+    ) {
         let isa = Isa::detect();
         let scene = crate::data::synth::tabletop(24, 4, 0.0);
         let aabb = scene.aabb;
@@ -418,16 +420,16 @@ mod tests {
         let mut rays = StepRays::default();
         pool.take(1, cfg.rays_per_step, &mut Rng::new(5), &mut rays, |_| [0.3, 0.5, 0.7]);
         assert!(rays.unchanged.iter().any(|&u| u) && rays.unchanged.iter().any(|&u| !u));
-        let inputs = StepInputs {
-            isa,
-            model: &field,
-            params: &params,
-            occupancy: &occupancy,
-            cfg: &cfg,
-            entropy: 0.1,
-            gains: &[],
-        };
-        let run = |pooled: bool| {
+        let run = |pooled: bool, cfg: &TrainConfig| {
+            let inputs = StepInputs {
+                isa,
+                model: &field,
+                params: &params,
+                occupancy: &occupancy,
+                cfg,
+                entropy: 0.1,
+                gains: &[],
+            };
             let mut workers: Vec<Worker<_>> = (0..SLOTS).map(|_| Worker::default()).collect();
             let mut slots: Vec<_> = (0..SLOTS).map(|_| Default::default()).collect();
             for (s, (w, slot)) in workers.iter_mut().zip(slots.iter_mut()).enumerate() {
@@ -445,16 +447,71 @@ mod tests {
             let g: Vec<Vec<f32>> = field.groups(&mut p, &grads).iter().map(|g| g.grad.to_vec()).collect();
             (loss, kept, g)
         };
-        let (loss_p, kept_p, grads_p) = run(true);
-        let (loss_f, kept_f, grads_f) = run(false);
-        assert!(kept_p > 0 && kept_p < kept_f, "pooled rays run only their inside samples ({kept_p} of {kept_f})");
-        assert!((loss_p - loss_f).abs() <= 1e-5 * loss_f, "loss {loss_p} pooled, {loss_f} fresh");
-        for (i, (p, f)) in grads_p.iter().zip(&grads_f).enumerate() {
-            let scale = f.iter().fold(0f32, |m, v| m.max(v.abs()));
-            assert!(scale > 0.0 || i == 3, "group {i} has a gradient");
-            for (j, (a, b)) in p.iter().zip(f).enumerate() {
-                assert!((a - b).abs() <= 1e-3 * scale, "group {i}[{j}]: pooled {a}, fresh {b} (scale {scale})");
+        check(&rays, &run, &cfg);
+    }
+
+    /// A pooled step's loss and gradients are those of marching the same rays fresh: the runs
+    /// outside the region composited once and the background's values handed in change only
+    /// the rounding.
+    #[test]
+    fn a_pooled_step_has_the_loss_and_gradients_of_the_same_rays_marched_fresh() {
+        frozen_outside_step(|_, run, cfg| {
+            let (loss_p, kept_p, grads_p) = run(true, cfg);
+            let (loss_f, kept_f, grads_f) = run(false, cfg);
+            assert!(kept_p > 0 && kept_p < kept_f, "pooled rays run only their inside samples ({kept_p} of {kept_f})");
+            assert!((loss_p - loss_f).abs() <= 1e-5 * loss_f, "loss {loss_p} pooled, {loss_f} fresh");
+            for (i, (p, f)) in grads_p.iter().zip(&grads_f).enumerate() {
+                let scale = f.iter().fold(0f32, |m, v| m.max(v.abs()));
+                assert!(scale > 0.0 || i == 3, "group {i} has a gradient");
+                for (j, (a, b)) in p.iter().zip(f).enumerate() {
+                    assert!((a - b).abs() <= 1e-3 * scale, "group {i}[{j}]: pooled {a}, fresh {b} (scale {scale})");
+                }
             }
-        }
+        });
+    }
+
+    /// The frozen tail stops rays beyond the region early and perturbs the step by no more
+    /// than the light it stops marching: the loss moves by less than τ of itself, the loss and
+    /// every group's gradient come closer to the exact step as τ shrinks, and at τ = 0.1 each
+    /// gradient keeps its direction; at τ = 0 the tail is off, bit for bit. (The random background here lets light through slowly,
+    /// so the tail starts biting at τ ≈ 0.1; a trained one turns opaque within a few cells.)
+    #[test]
+    fn the_frozen_tail_stops_rays_past_the_region_and_keeps_the_gradients() {
+        frozen_outside_step(|_, run, cfg| {
+            let exact = run(false, cfg);
+            let mut off = cfg.clone();
+            off.frozen_tail = 0.0;
+            assert_eq!(run(false, &off), exact, "τ = 0 marches every ray to its opaque point");
+            let (loss_f, kept_f, grads_f) = &exact;
+            let mut last: Option<(usize, f64, Vec<f64>)> = None;
+            for tau in [0.5f32, 0.3, 0.2, 0.1] {
+                let mut tail = cfg.clone();
+                tail.frozen_tail = tau;
+                let (loss_t, kept_t, grads_t) = run(false, &tail);
+                assert!(kept_t < *kept_f, "τ = {tau} keeps fewer samples ({kept_t} of {kept_f})");
+                let dl = (loss_t - loss_f).abs() / loss_f;
+                assert!(dl < tau as f64, "τ = {tau}: loss {loss_t} with the tail, {loss_f} without");
+                let mut errors = Vec::new();
+                for (i, (t, f)) in grads_t.iter().zip(grads_f).enumerate() {
+                    let dot = |a: &[f32], b: &[f32]| a.iter().zip(b).map(|(x, y)| *x as f64 * *y as f64).sum::<f64>();
+                    let (tt, ff, tf) = (dot(t, t), dot(f, f), dot(t, f));
+                    if ff == 0.0 {
+                        assert_eq!(tt, 0.0, "τ = {tau}: group {i} gains a gradient");
+                        continue;
+                    }
+                    let cos = tf / (tt * ff).sqrt();
+                    assert!(tau > 0.1 || cos > 0.9, "τ = {tau}: group {i}'s gradient turns (cos {cos})");
+                    errors.push(((tt - 2.0 * tf + ff) / ff).max(0.0).sqrt());
+                }
+                if let Some((kept_l, dl_l, errors_l)) = &last {
+                    assert!(kept_t >= *kept_l, "a smaller τ keeps more samples ({kept_t} < {kept_l})");
+                    assert!(dl <= *dl_l, "a smaller τ comes closer to the exact loss ({dl} > {dl_l})");
+                    for (e, l) in errors.iter().zip(errors_l) {
+                        assert!(*e <= l * 1.01, "a smaller τ comes closer to the exact gradient ({e} > {l})");
+                    }
+                }
+                last = Some((kept_t, dl, errors));
+            }
+        });
     }
 }

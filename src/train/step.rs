@@ -99,6 +99,19 @@ pub(super) fn march_in_segments(
     }
 }
 
+/// Where `r` leaves the region its model is frozen outside ([`FrozenOutside::region_bounds`]):
+/// beyond it a training ray may stop at the frozen tail ([`TrainConfig::frozen_tail`]); 0 for
+/// a ray that misses the region, +∞ when the tail is off or the model has no region.
+fn frozen_tail_start<M: Model>(x: &StepInputs<M>, r: &Ray) -> f32 {
+    if x.cfg.frozen_tail <= 0.0 {
+        return f32::INFINITY;
+    }
+    match x.model.frozen_outside().and_then(|f| f.region_bounds()) {
+        Some(b) => b.intersect(r.origin, r.dir).map_or(0.0, |(_, exit)| exit),
+        None => f32::INFINITY,
+    }
+}
+
 /// Ray `ray`'s composited colour `rgb` against its target (through its image's gain when gains
 /// are learned, adding the gain's gradient into `d_gain`): its squared error joins `loss` and,
 /// as the mean over the channels, `errors`; returns dL/dC (Eq. 4, averaged over the step's rays).
@@ -143,6 +156,8 @@ pub(super) struct Worker<C> {
     sigma: Vec<f32>,
     keep: Vec<u32>,
     kept: Vec<(u32, u32)>,
+    /// Per ray of the chunk: whether it stopped at the frozen tail ([`TrainConfig::frozen_tail`]).
+    tails: Vec<bool>,
     rgb: Vec<[f32; 3]>,
     d_sigma: Vec<f32>,
     d_rgb: Vec<[f32; 3]>,
@@ -190,6 +205,7 @@ impl<C: Default> Default for Worker<C> {
             sigma: Vec::new(),
             keep: Vec::new(),
             kept: Vec::new(),
+            tails: Vec::new(),
             rgb: Vec::new(),
             d_sigma: Vec::new(),
             d_rgb: Vec::new(),
@@ -402,6 +418,7 @@ impl<C> Worker<C> {
         self.sigma.clear();
         self.keep.clear();
         self.kept.clear();
+        self.tails.clear();
         self.units.frozen_s.clear();
     }
 
@@ -410,11 +427,18 @@ impl<C> Worker<C> {
     /// the segment in which the ray turns opaque (`T < 1e-4`): the samples behind it would be
     /// dropped unseen by compositing (nerfacc's early stop). Keeps the ray's samples up to its
     /// opaque point. The samples are exactly those of marching the whole ray.
+    ///
+    /// With [`TrainConfig::frozen_tail`] `τ > 0` and a model that is frozen outside a region,
+    /// the ray also stops at its first sample beyond the region's bounding box whose
+    /// transmittance has fallen below `τ`: the rest of the ray is the frozen field, and
+    /// [`Worker::run_chunk`] lets that last sample's colour stand for its light.
     fn add_ray<M: Model<Chunk = C>>(&mut self, x: &StepInputs<M>, r: &Ray) {
         let m = &mut self.marched;
         let start = m.t.len();
         let first_kept = self.keep.len() as u32;
         let mut acc = RayAccumulator::new();
+        let tail = frozen_tail_start(x, r);
+        let mut tailed = false;
         let (positions, dirs, sigma, keep, chunk) =
             (&mut self.positions, &mut self.dirs, &mut self.sigma, &mut self.keep, &mut self.chunk);
         march_in_segments(x.occupancy, r, x.cfg.frozen_stride, &mut m.t, &mut m.delta, |t, delta, seg| {
@@ -425,16 +449,18 @@ impl<C> Worker<C> {
             sigma.resize(seg.end, 0.0);
             x.model.chunk_density(x.isa, x.params, seg.start, &positions[seg.clone()], &mut sigma[seg.clone()], chunk);
             for i in seg {
-                if acc.is_opaque() {
+                if acc.is_opaque() || tailed {
                     break;
                 }
                 acc.push(sigma[i], delta[i], 0.0, [0.0; 3]);
                 keep.push(i as u32);
+                tailed = !acc.is_opaque() && t[i] > tail && acc.transmittance() < x.cfg.frozen_tail;
             }
-            acc.is_opaque()
+            acc.is_opaque() || tailed
         });
         m.rays.push((start as u32, (m.t.len() - start) as u32));
         self.kept.push((first_kept, self.keep.len() as u32 - first_kept));
+        self.tails.push(tailed);
     }
 
     /// The rest of a chunk whose rays [`Worker::add_ray`] evaluated: colours of the kept
@@ -467,10 +493,13 @@ impl<C> Worker<C> {
             true => x.model.chunk_beta(&mut self.chunk),
             false => None,
         };
-        for (ray, &(s0, count)) in range.zip(&self.kept) {
+        for ((ray, &(s0, count)), &tailed) in range.zip(&self.kept).zip(&self.tails) {
             let r = s0 as usize..(s0 + count) as usize;
             let (sigma, delta, t) = (&self.sigma[r.clone()], &m.delta[r.clone()], &m.t[r.clone()]);
-            let c = composite_ray(sigma, delta, t, &self.rgb[r.clone()], rays.backgrounds[ray]);
+            // A ray stopped at the frozen tail: its last sample's colour (a constant here, as the
+            // background colour is) stands for the frozen field's light behind it.
+            let behind = if tailed { self.rgb[r.end - 1] } else { rays.backgrounds[ray] };
+            let c = composite_ray(sigma, delta, t, &self.rgb[r.clone()], behind);
             let d_colour = score_ray(x, rays, ray, c.rgb, &mut self.loss, &mut self.ray_errors, &mut self.d_gain);
             let (d_s, d_c) = (&mut self.d_sigma[r.clone()], &mut self.d_rgb[r.clone()]);
             composite_ray_backward(sigma, delta, &self.rgb[r.clone()], &c, d_colour, d_s, d_c);

@@ -85,6 +85,13 @@ pub struct TrainConfig {
     /// region; [`OccupancyGrid::march_segment`]). 1: every step. Models without pinned cells
     /// sample every step whatever this says. Defaults to [`FROZEN_STRIDE`].
     pub frozen_stride: u32,
+    /// The frozen tail `τ`: with a model frozen outside a region (a residual model's change
+    /// region, [`crate::field::model::FrozenOutside`]), a training ray stops at its first sample
+    /// beyond the region's bounding box whose transmittance is below `τ`, and that sample's
+    /// colour stands for the light the frozen field would still add behind it (instead of
+    /// marching on to `T < 1e-4`). 0: off, every ray marched to its opaque point. Rendering and
+    /// evaluation always march to the opaque point. Defaults to [`FROZEN_TAIL`].
+    pub frozen_tail: f32,
     /// `Some(λ)`: learn a gain per training image and colour channel with the field, with an
     /// identity prior of weight λ ([`crate::train::gains`]; [`GAIN_PRIOR`] is the usual λ), for
     /// captures whose exposure or white balance moves from shot to shot. `None`: every image
@@ -133,8 +140,12 @@ pub const NEAR_GRADIENT_DISTANCE: f32 = 0.0;
 pub const DISTORTION: f32 = 0.0;
 
 /// Default of [`TrainConfig::frozen_stride`] (chosen by measured depth and time;
-/// docs/DECISIONS.md, "The frozen background sampled coarsely").
+/// docs/DECISIONS.md, "Where a residual step's time goes").
 pub const FROZEN_STRIDE: u32 = 1;
+
+/// Default of [`TrainConfig::frozen_tail`] (chosen by measured depth and time;
+/// docs/DECISIONS.md, "The frozen tail").
+pub const FROZEN_TAIL: f32 = 0.05;
 
 /// Default of [`TrainConfig::pixel_jitter`]: off, measured on the dev scenes (docs/DECISIONS.md,
 /// "Most of it is a one-pixel ring around the glass").
@@ -180,6 +191,7 @@ impl TrainConfig {
             focus: None,
             beta: BetaRegulariser::default(),
             frozen_stride: FROZEN_STRIDE,
+            frozen_tail: FROZEN_TAIL,
             image_gains: None,
             error_map: None,
             pixel_jitter: PIXEL_JITTER,
