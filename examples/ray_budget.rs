@@ -1,6 +1,7 @@
 //! Where a NeRF's samples go along the rays of a capture: samples marched and kept per ray
 //! (kept: before the ray turns opaque, T < 1e-4, as training and rendering stop), how many it
-//! takes for the transmittance to fall below 0.99 and 0.01, the optical thickness `σδ` of the
+//! takes for the transmittance to fall below 0.99, 0.3, 0.1, 0.05 and 0.01 (where a residual's
+//! training ray past the change region may stop: `--frozen-tail`), the optical thickness `σδ` of the
 //! kept samples and the share of the colour weight each carries, and the kept samples by
 //! distance from the camera. A field whose surfaces are sharp spends few samples per ray; one
 //! whose light leaks through its surfaces spends them on the leak.
@@ -34,7 +35,8 @@ fn main() -> Result<(), String> {
     let views = Dataset::load(Path::new(data), "train", &opts).map_err(|e| e.to_string())?.views;
     let occ = &nerf.occupancy;
     const BINS: [f64; 5] = [1e-3, 1e-2, 0.1, 1.0, f64::INFINITY];
-    let (mut rays, mut marched, mut kept, mut to_99, mut to_01) = (0usize, 0usize, 0usize, 0usize, 0usize);
+    const LADDER: [f64; 5] = [0.99, 0.3, 0.1, 0.05, 0.01];
+    let (mut rays, mut marched, mut kept, mut before) = (0usize, 0usize, 0usize, [0usize; 5]);
     let (mut count, mut weight) = ([0usize; 5], [0f64; 5]);
     let mut by_distance = [0usize; 8];
     let (mut samples, mut positions, mut sigma, mut ctx) =
@@ -57,8 +59,9 @@ fn main() -> Result<(), String> {
                         break;
                     }
                     kept += 1;
-                    to_99 += (t >= 0.99) as usize;
-                    to_01 += (t >= 0.01) as usize;
+                    for (n, &level) in before.iter_mut().zip(&LADDER) {
+                        *n += (t >= level) as usize;
+                    }
                     let thickness = s.max(0.0) as f64 * delta as f64;
                     let b = BINS.iter().position(|&x| thickness < x).expect("the last bin is unbounded");
                     let alpha = 1.0 - (-thickness).exp();
@@ -72,13 +75,10 @@ fn main() -> Result<(), String> {
     }
     let per_ray = |n: usize| n as f64 / rays.max(1) as f64;
     println!("{rays} rays from {} of {} views of {data}", views.len().div_ceil(every_view), views.len());
-    println!(
-        "per ray: {:.1} marched, {:.1} kept; {:.1} before T < 0.99, {:.1} before T < 0.01",
-        per_ray(marched),
-        per_ray(kept),
-        per_ray(to_99),
-        per_ray(to_01)
-    );
+    println!("per ray: {:.1} marched, {:.1} kept", per_ray(marched), per_ray(kept));
+    let ladder: Vec<String> =
+        LADDER.iter().zip(&before).map(|(level, &n)| format!("{:.1} before T < {level}", per_ray(n))).collect();
+    println!("per ray: {}", ladder.join(", "));
     println!("kept samples by σδ (< 1e-3, < 1e-2, < 0.1, < 1, ≥ 1): per ray, share of the colour weight");
     for (b, label) in ["< 1e-3", "< 1e-2", "< 0.1", "< 1", ">= 1"].iter().enumerate() {
         println!("  σδ {label:7} {:6.1} {:5.1}%", per_ray(count[b]), 100.0 * weight[b] / rays.max(1) as f64);

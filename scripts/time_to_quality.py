@@ -6,7 +6,11 @@ where the method (default `residual`) reaches it, in steps and training seconds,
 share of the baseline's training seconds; then the first point where the method is within 5% of
 its own final object MAE.
 
-    scripts/time_to_quality.py OUT_SCENE/curves.csv [...] [--method residual] [--baseline dex]
+    scripts/time_to_quality.py CURVES [...] [--method residual] [--baseline dex]
+
+CURVES is an `rnerf compare` curves.csv, optionally `FILE:METHOD,METHOD` to take only those
+methods' rows (e.g. the baseline's curves from an earlier run whose training it still is). A
+(scene, method, step) point met twice is an error.
 """
 import csv
 import sys
@@ -24,10 +28,19 @@ def main(argv):
             files.append(a)
     if not files:
         sys.exit(__doc__)
-    rows = []
+    rows, seen = [], set()
     for f in files:
+        f, _, only = f.partition(":")
+        only = set(only.split(",")) if only else None
         with open(f, newline="") as fh:
-            rows += list(csv.DictReader(fh))
+            for r in csv.DictReader(fh):
+                if only is not None and r["method"] not in only:
+                    continue
+                key = (r["scene"], r["method"], r["step"])
+                if key in seen:
+                    sys.exit(f"{f}: point {key} met twice")
+                seen.add(key)
+                rows.append(r)
     scenes = sorted({r["scene"] for r in rows}, key=[r["scene"] for r in rows].index)
     print(f"| scene | {baseline} final object MAE (m), its seconds | {method} reaches it at step (s), share of {baseline}'s seconds | {method} final object MAE (m) | within 5% of it at step (s) |")
     print("|---|---|---|---|---|")
