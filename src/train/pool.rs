@@ -36,7 +36,7 @@
 //! and at the same training time fewer fresh rays per step (`--rays 512`) give better depth
 //! (docs/DECISIONS.md, "The ray pool").
 
-use super::step::{march_in_segments, StepRays};
+use super::step::{march_in_segments, StepRays, RAY_SEGMENT};
 use super::trainer::{draw_pixel, is_unchanged, ray_through, TrainConfig};
 use crate::data::View;
 use crate::field::model::FrozenOutside;
@@ -269,7 +269,8 @@ impl Filler {
         let mut t_out = 1.0f32;
         let (positions, raw, keep, inside, chunk) =
             (&mut self.positions, &mut self.raw, &mut self.keep, &mut self.inside, &mut self.chunk);
-        march_in_segments(x.occupancy, &ray, x.cfg.frozen_stride, &mut self.t, &mut self.delta, |t, delta, seg| {
+        let (occ, stride) = (x.occupancy, x.cfg.frozen_stride);
+        march_in_segments(occ, &ray, stride, RAY_SEGMENT, &mut self.t, &mut self.delta, |t, delta, seg| {
             positions.extend(t[seg.clone()].iter().map(|&t| ray.at(t)));
             raw.resize(seg.end, 0.0);
             bg.field.chunk_density(x.isa, &bg.params, seg.start, &positions[seg.clone()], &mut raw[seg.clone()], chunk);
@@ -359,11 +360,12 @@ mod tests {
 
     /// A random background and residual over the tabletop scene, a change region of 4³ cells at
     /// its centre, β penalty on, and 128 rays drawn from a pool refreshed twice; `check` gets
-    /// the step's inputs, the rays and a function running them (pooled or fresh, with a
-    /// configuration) to the step's loss, kept samples and gradients per group.
+    /// the step's inputs, the rays and a function running them (pooled for `None`, fresh with
+    /// segments of `Some(n)` samples; with a configuration) to the step's loss, kept samples and
+    /// gradients per group.
     #[allow(clippy::type_complexity)]
     fn frozen_outside_step(
-        check: impl FnOnce(&StepRays, &dyn Fn(bool, &TrainConfig) -> (f64, usize, Vec<Vec<f32>>), &TrainConfig),
+        check: impl FnOnce(&StepRays, &dyn Fn(Option<usize>, &TrainConfig) -> (f64, usize, Vec<Vec<f32>>), &TrainConfig),
     ) {
         let isa = Isa::detect();
         let scene = crate::data::synth::tabletop(24, 4, 0.0);
@@ -420,7 +422,7 @@ mod tests {
         let mut rays = StepRays::default();
         pool.take(1, cfg.rays_per_step, &mut Rng::new(5), &mut rays, |_| [0.3, 0.5, 0.7]);
         assert!(rays.unchanged.iter().any(|&u| u) && rays.unchanged.iter().any(|&u| !u));
-        let run = |pooled: bool, cfg: &TrainConfig| {
+        let run = |fresh: Option<usize>, cfg: &TrainConfig| {
             let inputs = StepInputs {
                 isa,
                 model: &field,
@@ -431,12 +433,13 @@ mod tests {
                 gains: &[],
             };
             let mut workers: Vec<Worker<_>> = (0..SLOTS).map(|_| Worker::default()).collect();
+            workers.iter_mut().for_each(|w| w.segment = fresh.unwrap_or(RAY_SEGMENT));
             let mut slots: Vec<_> = (0..SLOTS).map(|_| Default::default()).collect();
             for (s, (w, slot)) in workers.iter_mut().zip(slots.iter_mut()).enumerate() {
                 let range = slot_range(rays.rays.len(), s);
-                match pooled {
-                    true => w.run_pooled(&inputs, split, &pool, &rays, range, slot),
-                    false => w.run(&inputs, &rays, range, slot),
+                match fresh {
+                    None => w.run_pooled(&inputs, split, &pool, &rays, range, slot),
+                    Some(_) => w.run(&inputs, &rays, range, slot),
                 }
             }
             let mut grads = field.zero_grads();
@@ -456,8 +459,8 @@ mod tests {
     #[test]
     fn a_pooled_step_has_the_loss_and_gradients_of_the_same_rays_marched_fresh() {
         frozen_outside_step(|_, run, cfg| {
-            let (loss_p, kept_p, grads_p) = run(true, cfg);
-            let (loss_f, kept_f, grads_f) = run(false, cfg);
+            let (loss_p, kept_p, grads_p) = run(None, cfg);
+            let (loss_f, kept_f, grads_f) = run(Some(RAY_SEGMENT), cfg);
             assert!(kept_p > 0 && kept_p < kept_f, "pooled rays run only their inside samples ({kept_p} of {kept_f})");
             assert!((loss_p - loss_f).abs() <= 1e-5 * loss_f, "loss {loss_p} pooled, {loss_f} fresh");
             for (i, (p, f)) in grads_p.iter().zip(&grads_f).enumerate() {
@@ -478,16 +481,16 @@ mod tests {
     #[test]
     fn the_frozen_tail_stops_rays_past_the_region_and_keeps_the_gradients() {
         frozen_outside_step(|_, run, cfg| {
-            let exact = run(false, cfg);
+            let exact = run(Some(RAY_SEGMENT), cfg);
             let mut off = cfg.clone();
             off.frozen_tail = 0.0;
-            assert_eq!(run(false, &off), exact, "τ = 0 marches every ray to its opaque point");
+            assert_eq!(run(Some(RAY_SEGMENT), &off), exact, "τ = 0 marches every ray to its opaque point");
             let (loss_f, kept_f, grads_f) = &exact;
             let mut last: Option<(usize, f64, Vec<f64>)> = None;
             for tau in [0.5f32, 0.3, 0.2, 0.1] {
                 let mut tail = cfg.clone();
                 tail.frozen_tail = tau;
-                let (loss_t, kept_t, grads_t) = run(false, &tail);
+                let (loss_t, kept_t, grads_t) = run(Some(RAY_SEGMENT), &tail);
                 assert!(kept_t < *kept_f, "τ = {tau} keeps fewer samples ({kept_t} of {kept_f})");
                 let dl = (loss_t - loss_f).abs() / loss_f;
                 assert!(dl < tau as f64, "τ = {tau}: loss {loss_t} with the tail, {loss_f} without");
@@ -511,6 +514,26 @@ mod tests {
                     }
                 }
                 last = Some((kept_t, dl, errors));
+            }
+        });
+    }
+
+    /// The segment length is a cost, not a result: marching a ray in segments of 1, 7, 32 or
+    /// 500 samples keeps the same samples, puts the same rays in each chunk (chunks close on
+    /// kept samples) and gives the same loss and gradients bit for bit, with the frozen tail
+    /// on (rays stop mid-segment) and off (rays run to their opaque point).
+    #[test]
+    fn a_step_has_the_same_bits_whatever_the_segment_length() {
+        frozen_outside_step(|_, run, cfg| {
+            for tau in [0.0f32, 0.3] {
+                let mut c = cfg.clone();
+                c.frozen_tail = tau;
+                let reference = run(Some(RAY_SEGMENT), &c);
+                assert!(reference.1 > 0 && reference.2.iter().any(|g| g.iter().any(|&v| v != 0.0)));
+                for segment in [1, 7, 500] {
+                    let step = run(Some(segment), &c);
+                    assert!(step == reference, "τ = {tau}: segments of {segment} samples change the step");
+                }
             }
         });
     }

@@ -56,17 +56,23 @@ impl StepRays {
     }
 }
 
-/// Marched samples a chunk of the fused step holds at least (it takes whole rays, so it ends
-/// with the rest of its last ray). Small enough that a chunk's activations (~1 KiB a sample)
-/// stay in L1/L2 between its forward and backward: the MLPs run 1.6× faster on 64-row
-/// batches than on 16 384-row ones (BENCHMARKS.md, session 6).
+/// Kept samples a chunk of the fused step holds at least (it takes whole rays, so it ends with
+/// the rest of its last ray). Counting kept samples, not evaluated ones, makes a chunk's rays,
+/// and so the order in which its sums round, independent of [`RAY_SEGMENT`]. Small enough
+/// that a chunk's activations (~1 KiB a sample) stay in L1/L2 between its forward and
+/// backward: the MLPs run 1.6× faster on 64-row batches than on 16 384-row ones
+/// (BENCHMARKS.md, "The training step: fused per chunk of rays").
 pub const CHUNK_SAMPLES: usize = 128;
 
-/// Samples of a ray's first evaluated segment; each further segment doubles. A ray's
-/// densities are evaluated only up to the segment in which it turns opaque.
-pub const RAY_SEGMENT: usize = 128;
+/// Samples of each evaluated segment of a training ray. A ray's densities are evaluated only
+/// up to the end of the segment in which it stops (opaque, or at the frozen tail), so a shorter
+/// segment evaluates fewer samples past the stop and costs more calls; which samples are kept,
+/// and every bit of the step, do not depend on it (test
+/// `a_step_has_the_same_bits_whatever_the_segment_length`). 32: docs/DECISIONS.md, "The frozen
+/// tail".
+pub const RAY_SEGMENT: usize = 32;
 
-/// Marches `r` through `occ` segment by segment ([`RAY_SEGMENT`] samples, doubling), appending
+/// Marches `r` through `occ` segment by segment (`len` samples each), appending
 /// each segment's samples to `t` and `delta` and handing `segment` the new samples' index range
 /// (with the arrays so far); stops after a segment for which it returns true (the ray turned
 /// opaque), at the end of the ray's span, or at the grid's sample budget. The segments
@@ -76,16 +82,17 @@ pub(super) fn march_in_segments(
     occ: &OccupancyGrid,
     r: &Ray,
     stride: u32,
+    len: usize,
     t: &mut Vec<f32>,
     delta: &mut Vec<f32>,
     mut segment: impl FnMut(&[f32], &[f32], std::ops::Range<usize>) -> bool,
 ) {
     let Some(span) = occ.span(r.origin, r.dir) else { return };
     let max = occ.config().max_samples;
-    let (mut next, mut taken, mut len) = (0, 0u32, RAY_SEGMENT);
+    let (mut next, mut taken) = (0, 0u32);
     loop {
         let s0 = t.len();
-        let room = len.min(max.saturating_sub(taken) as usize);
+        let room = len.max(1).min(max.saturating_sub(taken) as usize);
         next = occ.march_segment(r.origin, r.dir, span, next..span.steps, room, stride, t, delta);
         let count = t.len() - s0;
         if count == 0 {
@@ -95,7 +102,6 @@ pub(super) fn march_in_segments(
         if segment(t, delta, s0..s0 + count) || next >= span.steps || taken >= max {
             break;
         }
-        len *= 2;
     }
 }
 
@@ -172,6 +178,8 @@ pub(super) struct Worker<C> {
     pub(super) ray_errors: Vec<f32>,
     /// The pooled path's per-unit buffers.
     units: UnitScratch,
+    /// Samples of each evaluated segment of a ray ([`RAY_SEGMENT`]).
+    pub(super) segment: usize,
 }
 
 /// [`UnitScratch::row`] of a run outside the region (no row of the model's).
@@ -216,6 +224,7 @@ impl<C: Default> Default for Worker<C> {
             d_gain: Vec::new(),
             ray_errors: Vec::new(),
             units: UnitScratch::default(),
+            segment: RAY_SEGMENT,
         }
     }
 }
@@ -246,7 +255,7 @@ impl<C> Worker<C> {
         let mut first = range.start;
         for i in range.clone() {
             self.add_ray(x, &rays.rays[i]);
-            if self.marched.len() >= CHUNK_SAMPLES || i + 1 == range.end {
+            if self.keep.len() >= CHUNK_SAMPLES || i + 1 == range.end {
                 self.run_chunk(x, rays, first..i + 1, slot);
                 self.begin_chunk();
                 first = i + 1;
@@ -422,8 +431,8 @@ impl<C> Worker<C> {
         self.units.frozen_s.clear();
     }
 
-    /// Adds a ray to the chunk: marches it segment by segment ([`RAY_SEGMENT`] samples,
-    /// doubling), evaluates each segment's densities as the chunk's next rows, and stops at
+    /// Adds a ray to the chunk: marches it segment by segment ([`Worker::segment`] samples),
+    /// evaluates each segment's densities as the chunk's next rows, and stops at
     /// the segment in which the ray turns opaque (`T < 1e-4`): the samples behind it would be
     /// dropped unseen by compositing (nerfacc's early stop). Keeps the ray's samples up to its
     /// opaque point. The samples are exactly those of marching the whole ray.
@@ -438,10 +447,11 @@ impl<C> Worker<C> {
         let first_kept = self.keep.len() as u32;
         let mut acc = RayAccumulator::new();
         let tail = frozen_tail_start(x, r);
+        let (occ, stride, len) = (x.occupancy, x.cfg.frozen_stride, self.segment);
         let mut tailed = false;
         let (positions, dirs, sigma, keep, chunk) =
             (&mut self.positions, &mut self.dirs, &mut self.sigma, &mut self.keep, &mut self.chunk);
-        march_in_segments(x.occupancy, r, x.cfg.frozen_stride, &mut m.t, &mut m.delta, |t, delta, seg| {
+        march_in_segments(occ, r, stride, len, &mut m.t, &mut m.delta, |t, delta, seg| {
             for &t in &t[seg.clone()] {
                 positions.push(r.at(t));
                 dirs.push(r.dir);

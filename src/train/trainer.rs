@@ -219,7 +219,7 @@ pub struct StepStats {
     /// Mean samples per ray that reached the field's full forward and backward.
     pub samples_per_ray: f32,
     /// Mean samples per ray whose density was evaluated: those the occupancy grid let through,
-    /// up to the end of the segment ([`RAY_SEGMENT`], doubling) in which the ray turned opaque.
+    /// up to the end of the segment ([`RAY_SEGMENT`]) in which the ray stopped.
     pub marched_per_ray: f32,
     /// Seconds of training so far (time spent in the observer excluded).
     pub seconds: f64,
