@@ -74,8 +74,8 @@ pub const RAY_SEGMENT: usize = 32;
 
 /// Marches `r` through `occ` segment by segment (`len` samples each), appending
 /// each segment's samples to `t` and `delta` and handing `segment` the new samples' index range
-/// (with the arrays so far); stops after a segment for which it returns true (the ray turned
-/// opaque), at the end of the ray's span, or at the grid's sample budget. The segments
+/// (with the arrays so far); stops after a segment for which it returns true (the ray stopped:
+/// opaque, or at the frozen tail), at the end of the ray's span, or at the grid's sample budget. The segments
 /// concatenate to exactly the samples of marching the whole ray. The training step's rays and
 /// the ray pool's ([`super::pool`]) march this way.
 pub(super) fn march_in_segments(
