@@ -161,3 +161,30 @@ fn a_distorted_capture_loads_back_with_its_lens() {
         }
     }
 }
+
+/// Scenes of 1 to 4 small glass spheres (the update-cost scenes): each added sphere keeps every
+/// glass pixel of the scene before it (a pixel whose first hit was glass still hits glass) and
+/// adds new ones, and wherever a scene has no glass its depth is the empty workspace's.
+#[test]
+fn each_added_sphere_adds_glass_and_changes_nothing_else() {
+    let empty = workspace::workspace_with(48, 6, 0.0, Glass::None);
+    let scenes: Vec<_> = (1..=4).map(|n| workspace::workspace_with(48, 6, 0.0, Glass::Spheres(n))).collect();
+    let glass = |s: &residual_nerf::data::synth::SynthScene| s.masks.iter().flatten().filter(|&&m| m).count();
+    assert!(glass(&scenes[0]) > 0, "one sphere: no glass seen");
+    for (n, pair) in scenes.windows(2).enumerate() {
+        for v in 0..6 {
+            for (p, (&before, &after)) in pair[0].masks[v].iter().zip(&pair[1].masks[v]).enumerate() {
+                assert!(!before || after, "{} spheres, view {v}, pixel {p}: glass lost when a sphere is added", n + 1);
+            }
+        }
+        assert!(glass(&pair[1]) > glass(&pair[0]), "sphere {} adds no glass pixel", n + 2);
+    }
+    for s in &scenes {
+        for v in 0..6 {
+            let keep = |z: &[f32]| -> Vec<f32> {
+                z.iter().zip(&s.masks[v]).map(|(&z, &m)| if m { f32::NAN } else { z }).collect()
+            };
+            assert_same_depth(&keep(&s.depth[v]), &keep(&empty.depth[v]));
+        }
+    }
+}

@@ -1,6 +1,7 @@
-//! The synthetic robot workspace (issue #3's scene synthesiser): a small analytic ray tracer of
-//! a wooden table in an open-top room with three opaque objects and, in the scene version, a
-//! solid glass sphere with Fresnel reflection and refraction. It writes background and scene
+//! The synthetic robot workspace (the scene synthesiser): a small analytic ray tracer of a
+//! wooden table in an open-top room with three opaque objects and, in the scene version, glass
+//! ([`Glass`]: a solid glass sphere, a tall cylinder in clear or amber glass, or one to four
+//! small spheres) with Fresnel reflection and refraction. It writes background and scene
 //! image sets in the dataset layout (poses, z-depth ground truth, masks, crops), so the crate's
 //! tests and demo need no files.
 //!
@@ -41,7 +42,22 @@ pub enum Glass {
     /// the clear one is seen through at the test scenes' sizes: a tall object standing in
     /// what was empty air, for the occupancy and change-region paths.
     TallAmber,
+    /// `n` small clear glass spheres ([`SMALL_GLASS`], the first `n` of its spots, 1 to 4):
+    /// scenes whose change grows by whole objects (the cost of an update against the number
+    /// of objects, `examples/update_cost.rs`).
+    Spheres(u8),
 }
+
+/// Small glass spheres resting on the table, apart from each other and the opaque objects:
+/// centres (radius [`SMALL_GLASS_RADIUS`]); [`Glass::Spheres`] takes the first `n`.
+pub const SMALL_GLASS: [Vec3; 4] = [
+    Vec3::new(0.05, -0.08, SMALL_GLASS_RADIUS),
+    Vec3::new(0.4, -0.35, SMALL_GLASS_RADIUS),
+    Vec3::new(-0.1, 0.4, SMALL_GLASS_RADIUS),
+    Vec3::new(0.1, -0.55, SMALL_GLASS_RADIUS),
+];
+/// Radius of each of [`SMALL_GLASS`].
+pub const SMALL_GLASS_RADIUS: f32 = 0.08;
 
 /// Light kept per transmission through clear glass (a faint green, as thick glass has).
 pub const CLEAR_TINT: [f32; 3] = [0.96, 0.99, 0.97];
@@ -53,7 +69,7 @@ impl Glass {
     pub fn tint(self) -> [f32; 3] {
         match self {
             Glass::TallAmber => AMBER_TINT,
-            Glass::None | Glass::Sphere | Glass::Tall => CLEAR_TINT,
+            Glass::None | Glass::Sphere | Glass::Tall | Glass::Spheres(_) => CLEAR_TINT,
         }
     }
 }
@@ -258,12 +274,20 @@ fn intersect(ray: &Ray, glass: Glass) -> Option<Hit> {
         }
     }
     let object = match glass {
-        Glass::None => None,
+        Glass::None | Glass::Spheres(_) => None,
         Glass::Sphere => sphere(ray, GLASS),
         Glass::Tall | Glass::TallAmber => tall_glass(ray),
     };
     if let Some((t, n)) = object {
         keep(&mut best, t, n, Surface::Glass);
+    }
+    if let Glass::Spheres(n) = glass {
+        assert!((1..=SMALL_GLASS.len()).contains(&(n as usize)), "workspace: Glass::Spheres takes 1 to 4 spheres");
+        for &c in &SMALL_GLASS[..n as usize] {
+            if let Some((t, normal)) = sphere(ray, (c, SMALL_GLASS_RADIUS)) {
+                keep(&mut best, t, normal, Surface::Glass);
+            }
+        }
     }
     best
 }
