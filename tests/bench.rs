@@ -49,3 +49,50 @@ fn a_resized_view_sees_the_same_scene() {
         assert!((a.dir - b.dir).length() < 1e-5, "({x}, {y}): {:?} against {:?}", a.dir, b.dir);
     }
 }
+
+/// Time to quality on a small synthesised pair (the path of `rnerf bench --background-data BG
+/// --scene S`): the scene phase's figures are always there and consistent with each other; the
+/// background's are there exactly when its test PSNR reached the target, at a curve point.
+#[test]
+fn time_to_quality_reports_consistent_figures() {
+    use residual_nerf::app::demo_config;
+    use residual_nerf::bench::quality::{measure, QualityInputs, CURVE_EVERY};
+    use residual_nerf::compare::EvalSet;
+    use residual_nerf::data::workspace::{self, Glass};
+    let size = 16;
+    let bg = workspace::workspace_with(size, 12, 0.0, Glass::None);
+    let bg_test = workspace::workspace_with(size, 3, 0.37, Glass::None);
+    let scene = workspace::workspace_with(size, 12, 0.0, Glass::TallAmber);
+    let test = EvalSet::from_synth(&workspace::workspace_with(size, 2, 0.37, Glass::TallAmber));
+    let isa = Isa::detect();
+    // 150 steps: a curve point and the end (10 dB is reached by the first); the unreachable
+    // target's run is one curve point long.
+    for (target, reachable, steps) in [(10.0, true, CURVE_EVERY + 50), (99.0, false, CURVE_EVERY)] {
+        let cfg = demo_config(steps, 0);
+        let input = QualityInputs {
+            background_train: &bg.views,
+            background_test: &bg_test.views,
+            scene_train: &scene.views,
+            scene_test: &test,
+            cfg: &cfg,
+            target_psnr_db: target,
+        };
+        let q = measure(isa, &input).expect("the pair trains");
+        let at = |s: Option<residual_nerf::bench::Stat>| s.map(|s| s.median);
+        if reachable {
+            let steps_to = at(q.background_steps_to_28db).expect("10 dB is reached");
+            assert_eq!(steps_to % CURVE_EVERY as f64, 0.0, "{steps_to}: not a curve point");
+            assert!(at(q.background_test_psnr_at_28db).unwrap() >= target);
+            assert!(at(q.background_seconds_to_28db).unwrap() > 0.0);
+        } else {
+            assert!(q.background_seconds_to_28db.is_none() && q.background_steps_to_28db.is_none());
+            assert!(q.background_test_psnr_at_28db.is_none());
+        }
+        let (to, all) = (at(q.scene_seconds_to_quality).unwrap(), at(q.scene_seconds).unwrap());
+        assert!(0.0 < to && to <= all, "{to} s to quality of {all} s");
+        let step = at(q.scene_steps_to_quality).unwrap();
+        assert!(step == steps as f64 || step % CURVE_EVERY as f64 == 0.0, "step {step}");
+        assert!(at(q.scene_final_object_mae_m).unwrap().is_finite());
+        assert!(at(q.scene_prior_seconds).unwrap() > 0.0);
+    }
+}

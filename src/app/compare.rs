@@ -328,3 +328,49 @@ pub(super) fn demo(out: &Path, steps: Option<u32>, size: Option<u32>, seed: Opti
     );
     Ok(())
 }
+
+/// The datasets and settings of `rnerf bench --background-data BG --scene S`, read and checked
+/// before the bench runs.
+pub(super) struct QualityData {
+    bg_train: Dataset,
+    bg_test: Dataset,
+    scene_train: Dataset,
+    scene_test: EvalSet,
+    cfg: CompareConfig,
+}
+
+impl QualityData {
+    /// Reads both datasets; the settings are `rnerf compare`'s defaults (`log2t` as given).
+    pub(super) fn load(bg_dir: &Path, scene_dir: &Path, log2t: Option<u32>) -> Result<QualityData, String> {
+        let bg_opts =
+            LoadOptions { ground_truth: false, frame_type: Some(FrameType::Background), ..Default::default() };
+        let bg_train = crate::app::load_data(bg_dir, "train", &bg_opts)?;
+        let bg_test = crate::app::load_data(bg_dir, "test", &bg_opts)?;
+        let (scene_train, scene_test) = load_scene(scene_dir, bg_train.aabb, bg_dir)?;
+        let (grid, train) = trainer_settings(None, None, log2t, None, bg_train.had_alpha || scene_train.had_alpha);
+        let cfg = CompareConfig {
+            eval_every: crate::bench::quality::CURVE_EVERY,
+            train,
+            field: NerfConfig { grid, aabb: bg_train.aabb },
+            mixnet_grid: crate::field::mixnet::default_mixnet_grid(),
+            m: DensityThreshold::DEFAULT,
+            m_sweep: Vec::new(),
+            prior: Default::default(),
+            models: None,
+        };
+        Ok(QualityData { bg_train, bg_test, scene_train, scene_test, cfg })
+    }
+
+    /// [`crate::bench::quality::measure`] on them.
+    pub(super) fn measure(&self, isa: Isa) -> Result<crate::bench::QualityFigures, String> {
+        let input = crate::bench::quality::QualityInputs {
+            background_train: &self.bg_train.views,
+            background_test: &self.bg_test.views,
+            scene_train: &self.scene_train.views,
+            scene_test: &self.scene_test,
+            cfg: &self.cfg,
+            target_psnr_db: crate::bench::quality::TARGET_PSNR_DB,
+        };
+        crate::bench::quality::measure(isa, &input)
+    }
+}

@@ -85,7 +85,7 @@ pub fn run(command: Command) -> Result<(), Failure> {
             set_threads(threads)?;
             eval::run(&model, &data, &split, depth, crop, limit, json, depth_only)?;
         }
-        Command::Bench { json, reps, log2t, threads, models, data } => {
+        Command::Bench { json, reps, log2t, threads, models, data, background_data, scene } => {
             set_threads(threads)?;
             let trained = match &data {
                 Some(d) => models.iter().map(|m| bench::TrainedView::load(m, d)).collect::<Result<Vec<_>, _>>()?,
@@ -102,7 +102,15 @@ pub fn run(command: Command) -> Result<(), Failure> {
                 log2_table_size: log2t.unwrap_or(defaults.log2_table_size),
                 ..defaults
             };
-            let report = bench::run(&opts, trained);
+            // The datasets of the time-to-quality figures are read before anything runs.
+            let quality = match (&background_data, &scene) {
+                (Some(bg), Some(sc)) => Some(compare::QualityData::load(bg, sc, log2t)?),
+                _ => None,
+            };
+            let mut report = bench::run(&opts, trained);
+            if let Some(q) = &quality {
+                report.quality = q.measure(opts.isa)?;
+            }
             if json {
                 println!("{}", report.to_json());
             } else {

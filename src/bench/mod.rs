@@ -7,16 +7,20 @@
 //! - [`pipeline`]: short training runs of a NeRF and a residual model on the synthetic
 //!   workspace, threshold-depth views (of trained models instead when given: [`TrainedView`],
 //!   `rnerf bench --model M --data D`) and occupancy-grid updates;
+//! - [`quality`]: training time to quality on a captured background and scene (`rnerf bench
+//!   --background-data BG --scene S`): the background's seconds to 28 dB, the scene phase's
+//!   seconds to its final object-mask depth error;
 //! - [`report`]: the figures as typed structs, the derived bounds and ratios, JSON and table.
 
 pub mod kernels;
 pub mod peak;
 pub mod pipeline;
+pub mod quality;
 pub mod report;
 
 pub use kernels::{bare_gather, nerf_mlps, ray_coherent_positions};
 pub use pipeline::{resized, TrainedView};
-pub use report::{BenchReport, DerivedFigures, KernelFigures, PipelineFigures, Stat};
+pub use report::{BenchReport, DerivedFigures, KernelFigures, PipelineFigures, QualityFigures, Stat};
 
 use crate::encoding::HashGridConfig;
 use crate::simd::Isa;
@@ -67,6 +71,7 @@ pub fn run(opts: &BenchOptions, trained: Vec<TrainedView>) -> BenchReport {
         kernels,
         pipeline,
         derived,
+        quality: QualityFigures::none(),
     }
 }
 

@@ -141,6 +141,47 @@ figures! {
 }
 
 figures! {
+    /// Training time to quality on a captured background and scene ([`super::quality`],
+    /// `rnerf bench --background-data BG --scene S`); each one measurement, absent without
+    /// those flags (and the background's three when it never reached the PSNR).
+    QualityFigures {
+        /// The background's training seconds until its test PSNR first reached 28 dB.
+        background_seconds_to_28db: Option<Stat> = "s",
+        /// The same in steps (a multiple of the curve's 100).
+        background_steps_to_28db: Option<Stat> = "steps",
+        /// Its test PSNR there.
+        background_test_psnr_at_28db: Option<Stat> = "dB",
+        /// The scene prior's seconds (change maps, region, registration) before training.
+        scene_prior_seconds: Option<Stat> = "s",
+        /// The default Residual-NeRF's training seconds until its object-mask MAE is within 5%
+        /// of its final one.
+        scene_seconds_to_quality: Option<Stat> = "s",
+        /// The same in steps.
+        scene_steps_to_quality: Option<Stat> = "steps",
+        /// Its whole training's seconds.
+        scene_seconds: Option<Stat> = "s",
+        /// Its final object-mask MAE of threshold depth.
+        scene_final_object_mae_m: Option<Stat> = "m",
+    }
+}
+
+impl QualityFigures {
+    /// None measured (a bench run without a dataset pair).
+    pub fn none() -> QualityFigures {
+        QualityFigures {
+            background_seconds_to_28db: None,
+            background_steps_to_28db: None,
+            background_test_psnr_at_28db: None,
+            scene_prior_seconds: None,
+            scene_seconds_to_quality: None,
+            scene_steps_to_quality: None,
+            scene_seconds: None,
+            scene_final_object_mae_m: None,
+        }
+    }
+}
+
+figures! {
     /// Bounds and ratios computed from the medians of the measured figures.
     DerivedFigures {
         /// One training sample's three kernels (grid forward, MLP forward + backward, grid
@@ -208,12 +249,15 @@ pub struct BenchReport {
     pub pipeline: PipelineFigures,
     /// Bounds and ratios.
     pub derived: DerivedFigures,
+    /// Time to quality on a dataset pair (none measured without one).
+    pub quality: QualityFigures,
 }
 
 impl BenchReport {
     /// Every measured figure, in order: (name, unit, statistic).
     pub fn each(&self) -> Vec<(&'static str, &'static str, Stat)> {
-        let all = self.kernels.each().into_iter().chain(self.pipeline.each()).chain(self.derived.each());
+        let all = (self.kernels.each().into_iter().chain(self.pipeline.each()).chain(self.derived.each()))
+            .chain(self.quality.each());
         all.filter_map(|(name, unit, s)| Some((name, unit, s?))).collect()
     }
 

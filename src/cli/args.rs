@@ -82,6 +82,10 @@ pub enum Command {
         models: Vec<PathBuf>,
         /// Their camera: the first test view of this dataset (`--data`, needed with `--model`).
         data: Option<PathBuf>,
+        /// Time to quality: the background's dataset (`--background-data`, with `--scene`).
+        background_data: Option<PathBuf>,
+        /// Time to quality: the scene's dataset (`--scene`, with `--background-data`).
+        scene: Option<PathBuf>,
     },
     /// `rnerf help`, `-h`, `--help` or no arguments.
     Help,

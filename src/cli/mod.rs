@@ -174,6 +174,14 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
                     "bench: --model and --data go together (the model's camera is the data's first test view)",
                 ));
             }
+            if f.scenes.len() > 1 {
+                return Err(err("bench: one --scene (the scene phase is timed on one scene)"));
+            }
+            if f.scenes.is_empty() != f.background_data.is_none() {
+                return Err(err(
+                    "bench: --background-data and --scene go together (the scene phase trains over that background)",
+                ));
+            }
             Command::Bench {
                 json: f.json,
                 reps: f.reps,
@@ -181,6 +189,8 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
                 threads,
                 models: f.models.clone(),
                 data: f.data.clone(),
+                background_data: f.background_data.clone(),
+                scene: f.scenes.first().cloned(),
             }
         }
     })
@@ -216,13 +226,19 @@ mod tests {
                 log2t: Some(15),
                 threads: None,
                 models: vec![],
-                data: None
+                data: None,
+                background_data: None,
+                scene: None,
             })
         );
         assert_eq!(
             parse(args("demo --steps=20 --threads 1")),
             Ok(Command::Demo { out: None, steps: Some(20), size: None, seed: None, threads: Some(1) })
         );
+        assert!(matches!(
+            parse(args("bench --background-data b --scene s")),
+            Ok(Command::Bench { background_data: Some(b), scene: Some(s), .. }) if b.as_path() == std::path::Path::new("b") && s.as_path() == std::path::Path::new("s")
+        ));
         match parse(args("compare --background b --scene s1 --scene s2 --out o --methods dex,residual-s --m 5")) {
             Ok(Command::Compare(CompareArgs { scenes, methods, m, .. })) => {
                 assert_eq!(scenes, [PathBuf::from("s1"), PathBuf::from("s2")]);
@@ -237,6 +253,9 @@ mod tests {
             ("bench --model m.safetensors", "bench: --model and --data go together"),
             ("bench --data d", "bench: --model and --data go together"),
             ("bench --reps many", "--reps: 'many' is not a valid value"),
+            ("bench --background-data b", "bench: --background-data and --scene go together"),
+            ("bench --scene s", "bench: --background-data and --scene go together"),
+            ("bench --background-data b --scene s --scene t", "bench: one --scene"),
             ("demo --threads", "--threads"),
             ("demo --frobnicate", "unexpected argument '--frobnicate'"),
             ("train --data d", "--out is required"),

@@ -90,10 +90,15 @@ commands:
   demo   [--out DIR] [--steps N] [--size PX] [--seed S] [--threads N]
          synthesise a workspace and a glass object, then compare as above (default out: rnerf-demo)
   bench  [--json] [--reps N] [--log2t N] [--threads N] [--model MODEL [--model MODEL] --data DIR]
+         [--background-data BG_DIR --scene DIR]
          throughput of the hot kernels on this machine (one JSON object with --json); with
          --model, render_depth_ms_200[_residual] and render_depth_ms_640x480[_residual] time
          these trained models (a NeRF, a residual model) from the first test view of DIR (rescaled
-         to 200 wide, and to 640 wide cropped to 480 rows) instead of the bench's short-trained ones
+         to 200 wide, and to 640 wide cropped to 480 rows) instead of the bench's short-trained ones;
+         with --background-data and --scene, time to quality at the defaults: the background
+         trained on BG_DIR until its test PSNR reaches 28 dB (background_seconds_to_28db), then
+         the default Residual-NeRF on DIR until its object-mask MAE is within 5% of its final
+         one (scene_seconds_to_quality; curves every 100 steps, evaluation not counted)
   help   this text
 
 threshold depth: --m M is a density sigma >= M per unit of the dataset's coordinates (per metre;
