@@ -19,7 +19,6 @@ use residual_nerf::compare::{run_scene, CompareConfig, EvalSet, Method};
 use residual_nerf::data::workspace::{self, Glass, SKY};
 use residual_nerf::encoding::hashgrid::HashGridConfig;
 use residual_nerf::field::NerfConfig;
-use residual_nerf::render::DensityThreshold;
 use residual_nerf::simd::Isa;
 use residual_nerf::train::trainer::TrainConfig;
 
@@ -33,16 +32,9 @@ fn config(steps: u32) -> CompareConfig {
     let mut train = TrainConfig::with_steps(steps);
     train.background = SKY;
     train.random_background = true;
-    CompareConfig {
-        train,
-        field: NerfConfig { grid: HashGridConfig::default(), aabb: workspace::aabb() },
-        mixnet_grid: residual_nerf::field::mixnet::default_mixnet_grid(),
-        m: DensityThreshold::DEFAULT,
-        eval_every: steps,
-        m_sweep: Vec::new(),
-        prior: Default::default(),
-        models: None,
-    }
+    let mut cfg = CompareConfig::new(train, NerfConfig { grid: HashGridConfig::default(), aabb: workspace::aabb() });
+    cfg.eval_every = steps; // the final figures only
+    cfg
 }
 
 fn main() -> Result<(), String> {

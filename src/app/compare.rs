@@ -11,7 +11,7 @@ use crate::encoding::HashGridConfig;
 use crate::field::{Nerf, NerfConfig};
 use crate::files::{export, write_atomic};
 use crate::io::save_nerf;
-use crate::render::{Aabb, DensityThreshold, OccupancyConfig};
+use crate::render::{Aabb, OccupancyConfig};
 use crate::simd::Isa;
 use crate::train::trainer::{train_nerf, StepStats, TrainConfig};
 use serde_json::json;
@@ -103,16 +103,11 @@ pub(super) fn run(a: &crate::cli::CompareArgs) -> Result<(), String> {
     train.ray_pool = a.ray_pool.unwrap_or(train.ray_pool);
     train.image_gains = a.image_gains;
     train.pixel_jitter = a.pixel_jitter.unwrap_or(train.pixel_jitter);
-    let cfg = CompareConfig {
-        eval_every: a.eval_every.unwrap_or((train.steps / 20).max(1)),
-        train,
-        field: NerfConfig { grid, aabb },
-        mixnet_grid: crate::field::mixnet::default_mixnet_grid(),
-        m: a.m,
-        m_sweep: a.m_sweep.clone(),
-        prior: a.prior_settings.config(),
-        models: None,
-    };
+    let mut cfg = CompareConfig::new(train, NerfConfig { grid, aabb });
+    cfg.eval_every = a.eval_every.unwrap_or(cfg.eval_every);
+    cfg.m = a.m;
+    cfg.m_sweep = a.m_sweep.clone();
+    cfg.prior = a.prior_settings.config();
     let isa = Isa::detect();
     eprintln!(
         "rnerf compare: {} scene(s), methods {}, {} steps x {} rays, log2 T = {}, cpu level {isa}, {} threads",
@@ -271,19 +266,8 @@ pub fn demo_config(steps: u32, seed: u64) -> CompareConfig {
         warmup_steps: 64,
         ..Default::default()
     };
-    CompareConfig {
-        train,
-        field: NerfConfig {
-            grid: HashGridConfig { levels: 12, log2_table_size: 15, base_resolution: 16, finest_resolution: 512 },
-            aabb: workspace::aabb(),
-        },
-        mixnet_grid: crate::field::mixnet::default_mixnet_grid(),
-        m: DensityThreshold::DEFAULT,
-        eval_every: (steps / 20).max(1),
-        m_sweep: Vec::new(),
-        prior: Default::default(),
-        models: None,
-    }
+    let grid = HashGridConfig { levels: 12, log2_table_size: 15, base_resolution: 16, finest_resolution: 512 };
+    CompareConfig::new(train, NerfConfig { grid, aabb: workspace::aabb() })
 }
 
 /// `rnerf demo`: synthesise the workspace with and without a glass sphere (written as datasets
@@ -348,16 +332,8 @@ impl QualityData {
         let bg_test = crate::app::load_data(bg_dir, "test", &bg_opts)?;
         let (scene_train, scene_test) = load_scene(scene_dir, bg_train.aabb, bg_dir)?;
         let (grid, train) = trainer_settings(None, None, log2t, None, bg_train.had_alpha || scene_train.had_alpha);
-        let cfg = CompareConfig {
-            eval_every: crate::bench::quality::CURVE_EVERY,
-            train,
-            field: NerfConfig { grid, aabb: bg_train.aabb },
-            mixnet_grid: crate::field::mixnet::default_mixnet_grid(),
-            m: DensityThreshold::DEFAULT,
-            m_sweep: Vec::new(),
-            prior: Default::default(),
-            models: None,
-        };
+        // The curve's spacing is the measurement's own (`quality::CURVE_EVERY`).
+        let cfg = CompareConfig::new(train, NerfConfig { grid, aabb: bg_train.aabb });
         Ok(QualityData { bg_train, bg_test, scene_train, scene_test, cfg })
     }
 

@@ -16,12 +16,12 @@
 //! Each figure is one measurement (no repetitions: a training run is minutes).
 
 use super::report::{QualityFigures, Stat};
-use crate::compare::{run_scene, CompareConfig, EvalSet, Method};
+use crate::compare::{first_reaching, run_scene, CompareConfig, EvalSet, Method};
 use crate::data::{evenly_spaced, View};
 use crate::eval::{mse, psnr};
 use crate::field::{Nerf, NerfField};
 use crate::render::view::Scene;
-use crate::render::ViewRenderer;
+use crate::render::{FullOutputs, ViewRenderer};
 use crate::simd::Isa;
 use crate::train::trainer::train_model_from;
 
@@ -63,6 +63,7 @@ pub fn measure(isa: Isa, input: &QualityInputs<'_>) -> Result<QualityFigures, St
         return Err("bench: the background's test split has no views".into());
     }
     let mut renderer = ViewRenderer::<NerfField>::new();
+    let mut rgb = Vec::new();
     let mut reached: Option<(f64, u32, f64)> = None;
     let steps = cfg.train.steps;
     let target = input.target_psnr_db;
@@ -82,8 +83,11 @@ pub fn measure(isa: Isa, input: &QualityInputs<'_>) -> Result<QualityFigures, St
             let scene = Scene { model: &field, params, occupancy };
             let mut sum = 0.0;
             for v in &psnr_views {
-                let r = renderer.render(isa, &scene, &v.intrinsics, &v.pose, cfg.train.background, cfg.m);
-                sum += psnr(mse(&r.rgb, &v.rgb));
+                // Colour only, into one buffer: the other outputs are left empty, so not written.
+                rgb.resize(v.rgb.len(), [0.0; 3]);
+                let out = FullOutputs { rgb: &mut rgb, expected_z: &mut [], threshold_z: &mut [], beta: &mut [] };
+                renderer.full(isa, &scene, &v.intrinsics, &v.pose, cfg.train.background, cfg.m, out);
+                sum += psnr(mse(&rgb, &v.rgb));
             }
             let db = sum / psnr_views.len() as f64;
             eprintln!("rnerf bench: background step {}: test PSNR {db:.2} dB ({:.1} s)", s.step + 1, s.seconds);
@@ -112,8 +116,7 @@ pub fn measure(isa: Isa, input: &QualityInputs<'_>) -> Result<QualityFigures, St
     let prior = r.prior.ok_or("bench: the default method ran without its prior")?;
     let last = method.curve.last().ok_or("bench: the scene's curve is empty")?;
     let final_mae = last.errors.object.mae();
-    let near =
-        method.curve.iter().find(|p| p.errors.object.mae() <= (1.0 + QUALITY_TOLERANCE) * final_mae).unwrap_or(last);
+    let near = first_reaching(&method.curve, (1.0 + QUALITY_TOLERANCE) * final_mae).unwrap_or(last);
     if reached.is_none() {
         eprintln!("rnerf bench: the background did not reach {target} dB in {steps} steps");
     }

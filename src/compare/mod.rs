@@ -232,6 +232,24 @@ pub struct CompareConfig {
     pub models: Option<std::path::PathBuf>,
 }
 
+impl CompareConfig {
+    /// `train` and `field` with every other setting at its default: the Mixnet's default grid,
+    /// threshold depth at [`DensityThreshold::DEFAULT`], no `m` sweep, the prior's defaults,
+    /// models not saved, curve points every 1/20 of the steps.
+    pub fn new(train: TrainConfig, field: NerfConfig) -> CompareConfig {
+        CompareConfig {
+            eval_every: (train.steps / 20).max(1),
+            train,
+            field,
+            mixnet_grid: crate::field::mixnet::default_mixnet_grid(),
+            m: DensityThreshold::DEFAULT,
+            m_sweep: Vec::new(),
+            prior: Default::default(),
+            models: None,
+        }
+    }
+}
+
 /// A point of a speed curve: threshold-depth errors inside the test crops after `step` steps.
 #[derive(Clone, Copy, Debug)]
 pub struct CurvePoint {

@@ -273,21 +273,19 @@ fn intersect(ray: &Ray, glass: Glass) -> Option<Hit> {
             keep(&mut best, t, Vec3::Z, Surface::Diffuse([0.85, 0.85, 0.8]));
         }
     }
-    let object = match glass {
+    let spheres = match glass {
+        Glass::Spheres(n) => &SMALL_GLASS[..n as usize],
+        _ => &[],
+    };
+    let objects = match glass {
         Glass::None | Glass::Spheres(_) => None,
         Glass::Sphere => sphere(ray, GLASS),
         Glass::Tall | Glass::TallAmber => tall_glass(ray),
-    };
-    if let Some((t, n)) = object {
-        keep(&mut best, t, n, Surface::Glass);
     }
-    if let Glass::Spheres(n) = glass {
-        assert!((1..=SMALL_GLASS.len()).contains(&(n as usize)), "workspace: Glass::Spheres takes 1 to 4 spheres");
-        for &c in &SMALL_GLASS[..n as usize] {
-            if let Some((t, normal)) = sphere(ray, (c, SMALL_GLASS_RADIUS)) {
-                keep(&mut best, t, normal, Surface::Glass);
-            }
-        }
+    .into_iter()
+    .chain(spheres.iter().filter_map(|&c| sphere(ray, (c, SMALL_GLASS_RADIUS))));
+    for (t, n) in objects {
+        keep(&mut best, t, n, Surface::Glass);
     }
     best
 }
@@ -422,6 +420,9 @@ pub fn workspace_capture(size: u32, n_views: usize, phase: f32, glass: Glass, ca
 /// One view of the workspace from any camera: colours (through a per-channel `gain`, clamped
 /// as a sensor saturates), z-depth of the first surface (NaN where none) and the glass mask.
 pub fn render_view(k: &Intrinsics, pose: &Pose, glass: Glass, gain: [f32; 3]) -> (Vec<[f32; 3]>, Vec<f32>, Vec<bool>) {
+    if let Glass::Spheres(s) = glass {
+        assert!((1..=SMALL_GLASS.len()).contains(&(s as usize)), "workspace: Glass::Spheres takes 1 to 4 spheres");
+    }
     let n = (k.width * k.height) as usize;
     let (mut rgb, mut z, mut mask) = (Vec::with_capacity(n), Vec::with_capacity(n), Vec::with_capacity(n));
     for j in 0..k.height {
