@@ -68,7 +68,8 @@ fn nerf_learns_a_synthesised_tabletop() {
 }
 
 /// Same seed → the same trained parameters, bit for bit, on 1 and 2 threads (rays through the
-/// pixels' centres and jittered over their pixels); the jitter trains other parameters.
+/// pixels' centres, jittered over their pixels, and four per pixel through its filter); the
+/// jitter and the pixels' footprints each train other parameters.
 #[test]
 fn training_is_thread_count_independent() {
     let scene = synth::tabletop(12, 6, 0.0);
@@ -102,4 +103,9 @@ fn training_is_thread_count_independent() {
     let (c, d) = (run(1, &cfg), run(2, &cfg));
     assert!(c.params == d.params, "jittered: parameters differ between 1 and 2 threads");
     assert!(c.params != a.params, "the jitter changed no ray");
+    cfg.pixel_jitter = false;
+    cfg.pixel_rays = 4;
+    let (e, f) = (run(1, &cfg), run(2, &cfg));
+    assert!(e.params == f.params, "four rays per pixel: parameters differ between 1 and 2 threads");
+    assert!(e.params != a.params && e.params != c.params, "the footprints changed no ray");
 }

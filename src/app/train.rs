@@ -146,6 +146,7 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
     cfg.image_gains = a.image_gains;
     cfg.error_map = a.error_map;
     cfg.pixel_jitter = a.pixel_jitter.unwrap_or(cfg.pixel_jitter);
+    cfg.pixel_rays = a.pixel_rays.unwrap_or(cfg.pixel_rays);
     let isa = Isa::detect();
     describe_run(&cfg, field.grid.log2_table_size, isa);
     match (background, &a.background) {
@@ -372,6 +373,7 @@ fn run_metadata(
         ("train_image_gains", cfg.image_gains.map_or("off".into(), |l| format!("on (prior {l})"))),
         ("train_error_map", cfg.error_map.map_or("off".into(), |s| format!("share {s}"))),
         ("train_pixel_jitter", cfg.pixel_jitter.to_string()),
+        ("train_pixel_rays", cfg.pixel_rays.to_string()),
         ("train_data", a.data.display().to_string()),
         ("train_split", a.split.clone()),
     ];

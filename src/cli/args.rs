@@ -159,6 +159,8 @@ pub struct TrainArgs {
     pub error_map: Option<f32>,
     /// Rays through a random point of their pixel (`--pixel-jitter on|off`); `None`: the default.
     pub pixel_jitter: Option<bool>,
+    /// Rays per training pixel, scored by their mean (`--pixel-rays K`); `None`: the default.
+    pub pixel_rays: Option<u32>,
     /// Registration passes of a NeRF trained with `--pose-registration on`
     /// (`--registration-passes N`; default 1).
     pub registration_passes: Option<u32>,
@@ -215,6 +217,8 @@ pub struct CompareArgs {
     /// Every method's rays through a random point of their pixel (`--pixel-jitter on|off`);
     /// `None`: the default.
     pub pixel_jitter: Option<bool>,
+    /// Every method's rays per training pixel (`--pixel-rays K`); `None`: the default.
+    pub pixel_rays: Option<u32>,
 }
 
 /// The background prior's settings `rnerf train` and `rnerf compare` share; each `None` keeps

@@ -54,6 +54,7 @@ pub(super) const FLAGS: &[Flag] = &[
     Flag { name: "image-gains", commands: &["train", "compare"], setting: true },
     Flag { name: "error-map", commands: &["train"], setting: true },
     Flag { name: "pixel-jitter", commands: &["train", "compare"], setting: true },
+    Flag { name: "pixel-rays", commands: &["train", "compare"], setting: true },
     Flag { name: "exposure-correction", commands: &["train", "compare"], setting: true },
     Flag { name: "pose-registration", commands: &["train", "compare"], setting: true },
     Flag { name: "registration-passes", commands: &["train"], setting: true },
@@ -136,6 +137,8 @@ pub(super) struct Flags {
     pub(super) error_map: Option<f32>,
     /// `--pixel-jitter on|off`.
     pub(super) pixel_jitter: Option<bool>,
+    /// `--pixel-rays K`.
+    pub(super) pixel_rays: Option<u32>,
     /// Flags given, in order.
     pub(super) given: Vec<String>,
     pub(super) images: Option<PathBuf>,
@@ -240,6 +243,13 @@ impl Flags {
                     (choice(p, name, &["on", "off"])? == "on").then_some(crate::train::trainer::GAIN_PRIOR)
             }
             "pixel-jitter" => self.pixel_jitter = Some(choice(p, name, &["on", "off"])? == "on"),
+            "pixel-rays" => {
+                let max = crate::train::trainer::MAX_PIXEL_RAYS;
+                let n: u32 = text(p, name)?.parse().ok().filter(|n| (1..=max).contains(n)).ok_or_else(|| {
+                    err(format!("--pixel-rays: expected a whole number of rays per pixel in 1..={max}"))
+                })?;
+                self.pixel_rays = Some(n);
+            }
             "error-map" => {
                 let s = text(p, name)?;
                 self.error_map = match s.as_str() {

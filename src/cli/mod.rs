@@ -77,6 +77,12 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             "train: --registration-passes counts the passes of a NeRF's --pose-registration on (without --background)",
         ));
     }
+    if let Some(k) = f.pixel_rays {
+        let rays = f.rays.unwrap_or(crate::train::trainer::TRAIN_RAYS);
+        if !rays.is_multiple_of(k as usize) {
+            return Err(err(format!("--pixel-rays: {rays} rays per step are not whole pixels of {k} rays (--rays)")));
+        }
+    }
     Ok(match command.as_str() {
         "train" => Command::Train(TrainArgs {
             data: f.need_path("data", &command)?,
@@ -107,6 +113,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             image_gains: f.image_gains,
             error_map: f.error_map,
             pixel_jitter: f.pixel_jitter,
+            pixel_rays: f.pixel_rays,
             registration_passes: f.registration_passes,
         }),
         "render" => Command::Render {
@@ -159,6 +166,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             ray_pool: f.ray_pool,
             image_gains: f.image_gains,
             pixel_jitter: f.pixel_jitter,
+            pixel_rays: f.pixel_rays,
         }),
         "demo" => Command::Demo { out: f.out.clone(), steps: f.steps, size: f.size, seed: f.seed, threads },
         "import" => Command::ImportColmap(crate::data::colmap::ImportOptions {
@@ -280,6 +288,9 @@ mod tests {
             ("compare --background b --scene s --out o --methods dex,dex", "given twice"),
             ("compare --background b --scene s --out o --m-sweep 3,x", "--m-sweep: 'x'"),
             ("compare --background b --scene s --out o --depth expected", "unexpected argument '--depth'"),
+            ("train --data d --out m --pixel-rays 0", "--pixel-rays: expected"),
+            ("train --data d --out m --pixel-rays 3", "--pixel-rays: 1024 rays per step"),
+            ("compare --background b --scene s --out o --rays 500 --pixel-rays 8", "--pixel-rays: 500 rays"),
             ("--json", "expected a command"),
         ] {
             let e = parse(args(bad)).unwrap_err();

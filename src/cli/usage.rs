@@ -10,7 +10,7 @@ commands:
          [--background-data BG_DIR] [--beta U,E] [--beta-margin N] [--region-floor S|off]
          [--focus-share F] [--region-vote V,S] [--frozen-stride N] [--frozen-tail T] [--ray-pool N] [--exposure-correction on|off]
          [--pose-registration on|off]] [--pose-registration on [--registration-passes N]]
-         [--image-gains on|off] [--error-map S|off] [--pixel-jitter on|off] [--checkpoint-every N]
+         [--image-gains on|off] [--error-map S|off] [--pixel-jitter on|off] [--pixel-rays K] [--checkpoint-every N]
          [--scene-views N]
          train a NeRF on DIR's transforms_<split>.json (default split: train); with --background,
          a Residual-NeRF (residual + Mixnet over the frozen background; --mix sum: Residual-NeRF-S),
@@ -27,7 +27,9 @@ commands:
          --error-map S: draw share S of each step's rays by the training error (a running
          error per 8x8-pixel tile, Instant-NGP's error map; default off). --pixel-jitter on:
          each training ray through a random point of its pixel instead of its centre (default
-         off). --beta-margin N: the β penalty spares the changed pixels grown by N pixels
+         off). --pixel-rays K: score each training pixel by the mean colour of K rays through
+         its footprint (a 1.5 px Blackman-Harris filter, as the dev renders'; the step's rays
+         cover rays/K pixels; default 1). --beta-margin N: the β penalty spares the changed pixels grown by N pixels
          (default 2, the change maps' own dilation).
          Checkpoints go to MODEL with '.ckpt' before the extension (every N steps, and on
          SIGINT/SIGTERM, which then exit 130/143); a finished run removes its checkpoint
@@ -48,7 +50,7 @@ commands:
          [--log2t N] [--seed S] [--eval-every N] [--m M | --m-raw S] [--m-sweep M,M,...] [--threads N]
          [--beta U,E] [--beta-margin N] [--region-floor S|off] [--focus-share F] [--region-vote V,S]
          [--frozen-stride N] [--frozen-tail T] [--ray-pool N] [--exposure-correction on|off] [--pose-registration on|off]
-         [--image-gains on|off] [--pixel-jitter on|off]
+         [--image-gains on|off] [--pixel-jitter on|off] [--pixel-rays K]
          (--m-sweep: also score the final models at these σ thresholds, default 3,10,20,40;
          --beta: weights of the background-aware methods' β penalty and entropy;
          --beta-margin: pixels around the changed ones the β penalty spares, default 2;
@@ -70,6 +72,8 @@ commands:
          --image-gains: every run (background included) learns a gain per image, default off;
          --pixel-jitter: every run's training rays through random points of their pixels,
          default off;
+         --pixel-rays: every run scores each training pixel by the mean of K rays through its
+         footprint, default 1;
          methods: dex, dex-error-map, finetune, residual, residual-no-warm-start, residual-no-region,
          residual-no-focus, residual-no-reach, residual-no-beta, residual-solid, residual-activated,
          residual-activated-no-warm-start,

@@ -338,7 +338,7 @@ pub fn train_config_json(c: &TrainConfig) -> Value {
         "seed": c.seed, "distortion": c.distortion, "near_gradient_distance": c.near_gradient_distance,
         "beta_unchanged": c.beta.unchanged, "beta_entropy": c.beta.entropy, "beta_entropy_from": c.beta.entropy_from,
         "frozen_stride": c.frozen_stride, "image_gains": c.image_gains, "error_map": c.error_map,
-        "pixel_jitter": c.pixel_jitter, "ray_pool": c.ray_pool,
+        "pixel_jitter": c.pixel_jitter, "pixel_rays": c.pixel_rays, "ray_pool": c.ray_pool,
         "frozen_tail": c.frozen_tail,
     })
 }
@@ -418,6 +418,11 @@ pub fn parse_train_config(v: &Value, occupancy: OccupancyConfig) -> Result<Train
             None => false,
             Some(b) => b.as_bool().ok_or("'pixel_jitter' is not true or false")?,
         },
+        // Added later: absent means one ray per pixel.
+        pixel_rays: match v.get("pixel_rays") {
+            None => 1,
+            Some(_) => uint(v, "pixel_rays", 1, crate::train::trainer::MAX_PIXEL_RAYS as u64)? as u32,
+        },
         // Added later: absent means every ray fresh (how those runs were trained).
         ray_pool: match v.get("ray_pool") {
             None => 0,
@@ -438,11 +443,13 @@ mod tests {
         c.image_gains = Some(crate::train::trainer::GAIN_PRIOR);
         c.error_map = Some(0.375);
         c.pixel_jitter = !c.pixel_jitter;
+        c.pixel_rays = 4;
         let back = parse_train_config(&train_config_json(&c), c.occupancy.clone()).unwrap();
         assert_eq!(back.beta, c.beta);
         assert_eq!(back.image_gains, c.image_gains);
         assert_eq!(back.error_map, c.error_map);
         assert_eq!(back.pixel_jitter, c.pixel_jitter);
+        assert_eq!(back.pixel_rays, c.pixel_rays);
         assert_eq!((back.steps, back.seed, back.schedule), (c.steps, c.seed, c.schedule.clone()));
         // A checkpoint written before the β weights and the gains existed reads them as off.
         let mut old = train_config_json(&c);

@@ -7,6 +7,7 @@ pub mod error_map;
 pub mod field_fit;
 pub mod gains;
 pub mod lift;
+pub mod pixel_filter;
 mod pool;
 pub mod prior;
 pub mod register;

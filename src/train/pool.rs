@@ -353,7 +353,7 @@ mod tests {
     use crate::field::{Nerf, NerfConfig, NerfField};
     use crate::geometry::ChangeRegion;
     use crate::render::OccupancyConfig;
-    use crate::slots::{slot_range, SLOTS};
+    use crate::slots::SLOTS;
     use crate::train::step::{StepInputs, Worker};
     use crate::train::trainer::Focus;
     use std::sync::Arc;
@@ -365,7 +365,11 @@ mod tests {
     /// gradients per group.
     #[allow(clippy::type_complexity)]
     fn frozen_outside_step(
-        check: impl FnOnce(&StepRays, &dyn Fn(Option<usize>, &TrainConfig) -> (f64, usize, Vec<Vec<f32>>), &TrainConfig),
+        check: impl FnOnce(
+            &StepRays,
+            &dyn Fn(Option<usize>, &TrainConfig, &StepRays) -> (f64, usize, Vec<Vec<f32>>),
+            &TrainConfig,
+        ),
     ) {
         let isa = Isa::detect();
         let scene = crate::data::synth::tabletop(24, 4, 0.0);
@@ -422,7 +426,7 @@ mod tests {
         let mut rays = StepRays::default();
         pool.take(1, cfg.rays_per_step, &mut Rng::new(5), &mut rays, |_| [0.3, 0.5, 0.7]);
         assert!(rays.unchanged.iter().any(|&u| u) && rays.unchanged.iter().any(|&u| !u));
-        let run = |fresh: Option<usize>, cfg: &TrainConfig| {
+        let run = |fresh: Option<usize>, cfg: &TrainConfig, rays: &StepRays| {
             let inputs = StepInputs {
                 isa,
                 model: &field,
@@ -436,10 +440,10 @@ mod tests {
             workers.iter_mut().for_each(|w| w.segment = fresh.unwrap_or(RAY_SEGMENT));
             let mut slots: Vec<_> = (0..SLOTS).map(|_| Default::default()).collect();
             for (s, (w, slot)) in workers.iter_mut().zip(slots.iter_mut()).enumerate() {
-                let range = slot_range(rays.rays.len(), s);
+                let range = crate::train::step::slot_rays(rays.rays.len(), cfg.pixel_rays, s);
                 match fresh {
-                    None => w.run_pooled(&inputs, split, &pool, &rays, range, slot),
-                    Some(_) => w.run(&inputs, &rays, range, slot),
+                    None => w.run_pooled(&inputs, split, &pool, rays, range, slot),
+                    Some(_) => w.run(&inputs, rays, range, slot),
                 }
             }
             let mut grads = field.zero_grads();
@@ -458,9 +462,9 @@ mod tests {
     /// the rounding.
     #[test]
     fn a_pooled_step_has_the_loss_and_gradients_of_the_same_rays_marched_fresh() {
-        frozen_outside_step(|_, run, cfg| {
-            let (loss_p, kept_p, grads_p) = run(None, cfg);
-            let (loss_f, kept_f, grads_f) = run(Some(RAY_SEGMENT), cfg);
+        frozen_outside_step(|rays, run, cfg| {
+            let (loss_p, kept_p, grads_p) = run(None, cfg, rays);
+            let (loss_f, kept_f, grads_f) = run(Some(RAY_SEGMENT), cfg, rays);
             assert!(kept_p > 0 && kept_p < kept_f, "pooled rays run only their inside samples ({kept_p} of {kept_f})");
             assert!((loss_p - loss_f).abs() <= 1e-5 * loss_f, "loss {loss_p} pooled, {loss_f} fresh");
             for (i, (p, f)) in grads_p.iter().zip(&grads_f).enumerate() {
@@ -480,17 +484,17 @@ mod tests {
     /// so the tail starts biting at τ ≈ 0.1; a trained one turns opaque within a few cells.)
     #[test]
     fn the_frozen_tail_stops_rays_past_the_region_and_keeps_the_gradients() {
-        frozen_outside_step(|_, run, cfg| {
-            let exact = run(Some(RAY_SEGMENT), cfg);
+        frozen_outside_step(|rays, run, cfg| {
+            let exact = run(Some(RAY_SEGMENT), cfg, rays);
             let mut off = cfg.clone();
             off.frozen_tail = 0.0;
-            assert_eq!(run(Some(RAY_SEGMENT), &off), exact, "τ = 0 marches every ray to its opaque point");
+            assert_eq!(run(Some(RAY_SEGMENT), &off, rays), exact, "τ = 0 marches every ray to its opaque point");
             let (loss_f, kept_f, grads_f) = &exact;
             let mut last: Option<(usize, f64, Vec<f64>)> = None;
             for tau in [0.5f32, 0.3, 0.2, 0.1] {
                 let mut tail = cfg.clone();
                 tail.frozen_tail = tau;
-                let (loss_t, kept_t, grads_t) = run(Some(RAY_SEGMENT), &tail);
+                let (loss_t, kept_t, grads_t) = run(Some(RAY_SEGMENT), &tail, rays);
                 assert!(kept_t < *kept_f, "τ = {tau} keeps fewer samples ({kept_t} of {kept_f})");
                 let dl = (loss_t - loss_f).abs() / loss_f;
                 assert!(dl < tau as f64, "τ = {tau}: loss {loss_t} with the tail, {loss_f} without");
@@ -524,15 +528,48 @@ mod tests {
     /// on (rays stop mid-segment) and off (rays run to their opaque point).
     #[test]
     fn a_step_has_the_same_bits_whatever_the_segment_length() {
-        frozen_outside_step(|_, run, cfg| {
+        frozen_outside_step(|rays, run, cfg| {
             for tau in [0.0f32, 0.3] {
                 let mut c = cfg.clone();
                 c.frozen_tail = tau;
-                let reference = run(Some(RAY_SEGMENT), &c);
+                let reference = run(Some(RAY_SEGMENT), &c, rays);
                 assert!(reference.1 > 0 && reference.2.iter().any(|g| g.iter().any(|&v| v != 0.0)));
                 for segment in [1, 7, 500] {
-                    let step = run(Some(segment), &c);
+                    let step = run(Some(segment), &c, rays);
                     assert!(step == reference, "τ = {tau}: segments of {segment} samples change the step");
+                }
+            }
+        });
+    }
+
+    /// A pixel scored by the mean of its rays ([`TrainConfig::pixel_rays`]): three rays through
+    /// the same point make the step of that one ray — the same loss per ray, and gradients
+    /// whose thirds add up to the one ray's (rounding apart) — with the β terms on.
+    #[test]
+    fn a_pixel_of_three_identical_rays_makes_the_step_of_one() {
+        frozen_outside_step(|rays, run, cfg| {
+            let one = run(Some(RAY_SEGMENT), cfg, rays);
+            let mut three = StepRays::default();
+            for i in 0..rays.rays.len() {
+                for _ in 0..3 {
+                    three.rays.push(rays.rays[i]);
+                    three.targets.push(rays.targets[i]);
+                    three.backgrounds.push(rays.backgrounds[i]);
+                    three.unchanged.push(rays.unchanged[i]);
+                    three.view.push(rays.view[i]);
+                    three.pixel.push(rays.pixel[i]);
+                }
+            }
+            let mut c = cfg.clone();
+            c.pixel_rays = 3;
+            c.rays_per_step = 3 * cfg.rays_per_step;
+            let (loss, kept, grads) = run(Some(RAY_SEGMENT), &c, &three);
+            assert_eq!(kept, 3 * one.1);
+            assert!((loss - 3.0 * one.0).abs() <= 1e-6 * loss, "loss {loss} against 3 × {}", one.0);
+            for (i, (g, f)) in grads.iter().zip(&one.2).enumerate() {
+                let scale = f.iter().fold(0f32, |m, v| m.max(v.abs()));
+                for (j, (a, b)) in g.iter().zip(f).enumerate() {
+                    assert!((a - b).abs() <= 1e-5 * scale, "group {i}[{j}]: three rays {a}, one {b} (scale {scale})");
                 }
             }
         });

@@ -11,7 +11,7 @@ use super::pool::RayPool;
 use super::trainer::TrainConfig;
 use crate::field::model::FrozenOutside;
 use crate::field::model::Model;
-use crate::render::composite::{is_opaque, transmitted};
+use crate::render::composite::{is_opaque, transmitted, RayComposite};
 use crate::render::distortion::distortion_backward;
 use crate::render::{composite_ray, composite_ray_backward, OccupancyGrid, PackedSamples, Ray, RayAccumulator};
 use crate::simd::Isa;
@@ -54,6 +54,15 @@ impl StepRays {
         self.pixel.clear();
         self.pooled.clear();
     }
+}
+
+/// The rays of slot `s` among a step's `n` rays: whole pixels of `pixel_rays` rays each
+/// ([`TrainConfig::pixel_rays`]; a pixel's rays are scored together), split as
+/// [`crate::slots::slot_range`] splits the pixels.
+pub(super) fn slot_rays(n: usize, pixel_rays: u32, s: usize) -> std::ops::Range<usize> {
+    let k = pixel_rays.max(1) as usize;
+    let pixels = crate::slots::slot_range(n / k, s);
+    pixels.start * k..pixels.end * k
 }
 
 /// Kept samples a chunk of the fused step holds at least (it takes whole rays, so it ends with
@@ -118,31 +127,39 @@ fn frozen_tail_start<M: Model>(x: &StepInputs<M>, r: &Ray) -> f32 {
     }
 }
 
-/// Ray `ray`'s composited colour `rgb` against its target (through its image's gain when gains
-/// are learned, adding the gain's gradient into `d_gain`): its squared error joins `loss` and,
-/// as the mean over the channels, `errors`; returns dL/dC (Eq. 4, averaged over the step's rays).
-fn score_ray<M: Model>(
+/// A pixel's colour against its target: `rgb` the mean colour of its `n` rays from `first`
+/// (one, or [`TrainConfig::pixel_rays`]; they share target, view and gain), seen through its
+/// image's gain when gains are learned (adding the gain's gradient into `d_gain`). The pixel
+/// stands for `n` of the step's rays: its squared error joins `loss` `n` times and, as the
+/// mean over the channels, `errors` once per ray. Returns dL/dC of each of its rays (Eq. 4,
+/// averaged over the step's rays; with `n` rays each carries `1/n` of the mean's gradient).
+#[allow(clippy::too_many_arguments)]
+fn score_pixel<M: Model>(
     x: &StepInputs<M>,
     rays: &StepRays,
-    ray: usize,
+    first: usize,
+    n: usize,
     rgb: [f32; 3],
     loss: &mut f64,
     errors: &mut Vec<f32>,
     d_gain: &mut [[f32; 3]],
 ) -> [f32; 3] {
-    let scale = 2.0 / (3 * x.cfg.rays_per_step) as f32;
-    let target = rays.targets[ray];
-    let (err, d_colour) = match x.gains.get(rays.view[ray] as usize) {
-        Some(&g) => gained_error(rgb, target, g, scale, &mut d_gain[rays.view[ray] as usize]),
+    let scale = 2.0 * n as f32 / (3 * x.cfg.rays_per_step) as f32;
+    let target = rays.targets[first];
+    let (err, d_mean) = match x.gains.get(rays.view[first] as usize) {
+        Some(&g) => gained_error(rgb, target, g, scale, &mut d_gain[rays.view[first] as usize]),
         None => {
             let err: [f32; 3] = std::array::from_fn(|i| rgb[i] - target[i]);
             (err, err.map(|e| e * scale))
         }
     };
     let sq: f32 = err.iter().map(|e| e * e).sum();
-    errors.push(sq / 3.0);
-    *loss += err.iter().map(|e| (e * e) as f64).sum::<f64>();
-    d_colour
+    errors.extend(std::iter::repeat_n(sq / 3.0, n));
+    *loss += n as f64 * err.iter().map(|e| (e * e) as f64).sum::<f64>();
+    match n {
+        1 => d_mean,
+        _ => d_mean.map(|d| d / n as f32),
+    }
 }
 
 /// Ray `ray`'s weights of the β penalty (0 on a changed ray) and of the β entropy, each per ray
@@ -165,6 +182,9 @@ pub(super) struct Worker<C> {
     /// Per ray of the chunk: whether it stopped at the frozen tail ([`TrainConfig::frozen_tail`]).
     tails: Vec<bool>,
     rgb: Vec<[f32; 3]>,
+    /// Per ray of the chunk: its composite, and the dL/dC its pixel's score gives it.
+    composites: Vec<RayComposite>,
+    d_colours: Vec<[f32; 3]>,
     d_sigma: Vec<f32>,
     d_rgb: Vec<[f32; 3]>,
     scratch: Vec<f32>,
@@ -215,6 +235,8 @@ impl<C: Default> Default for Worker<C> {
             kept: Vec::new(),
             tails: Vec::new(),
             rgb: Vec::new(),
+            composites: Vec::new(),
+            d_colours: Vec::new(),
             d_sigma: Vec::new(),
             d_rgb: Vec::new(),
             scratch: Vec::new(),
@@ -252,10 +274,13 @@ impl<C> Worker<C> {
         slot: &mut M::Slot,
     ) {
         self.begin_run(x, slot);
+        // A chunk ends after a whole pixel's rays (they are scored together).
+        let per_pixel = x.cfg.pixel_rays.max(1) as usize;
         let mut first = range.start;
         for i in range.clone() {
             self.add_ray(x, &rays.rays[i]);
-            if self.keep.len() >= CHUNK_SAMPLES || i + 1 == range.end {
+            let pixel_done = (i + 1 - range.start).is_multiple_of(per_pixel);
+            if (self.keep.len() >= CHUNK_SAMPLES && pixel_done) || i + 1 == range.end {
                 self.run_chunk(x, rays, first..i + 1, slot);
                 self.begin_chunk();
                 first = i + 1;
@@ -381,7 +406,7 @@ impl<C> Worker<C> {
             let r = s0 as usize..(s0 + count) as usize;
             let (sigma, delta, t) = (&u.sigma[r.clone()], &u.delta[r.clone()], &u.t[r.clone()]);
             let c = composite_ray(sigma, delta, t, &u.rgb[r.clone()], rays.backgrounds[ray]);
-            let d_colour = score_ray(x, rays, ray, c.rgb, &mut self.loss, &mut self.ray_errors, &mut self.d_gain);
+            let d_colour = score_pixel(x, rays, ray, 1, c.rgb, &mut self.loss, &mut self.ray_errors, &mut self.d_gain);
             u.d_sigma.resize(count as usize, 0.0);
             u.d_rgb.resize(count as usize, [0.0; 3]);
             composite_ray_backward(sigma, delta, &u.rgb[r.clone()], &c, d_colour, &mut u.d_sigma, &mut u.d_rgb);
@@ -503,16 +528,48 @@ impl<C> Worker<C> {
             true => x.model.chunk_beta(&mut self.chunk),
             false => None,
         };
-        for ((ray, &(s0, count)), &tailed) in range.zip(&self.kept).zip(&self.tails) {
+        // Each ray composited (Eq. 2); a pixel's rays are scored together, as the mean colour
+        // of its footprint ([`TrainConfig::pixel_rays`]), each taking the same dL/dC.
+        self.composites.clear();
+        for ((ray, &(s0, count)), &tailed) in range.clone().zip(&self.kept).zip(&self.tails) {
             let r = s0 as usize..(s0 + count) as usize;
-            let (sigma, delta, t) = (&self.sigma[r.clone()], &m.delta[r.clone()], &m.t[r.clone()]);
             // A ray stopped at the frozen tail: its last sample's colour (a constant here, as the
             // background colour is) stands for the frozen field's light behind it.
             let behind = if tailed { self.rgb[r.end - 1] } else { rays.backgrounds[ray] };
-            let c = composite_ray(sigma, delta, t, &self.rgb[r.clone()], behind);
-            let d_colour = score_ray(x, rays, ray, c.rgb, &mut self.loss, &mut self.ray_errors, &mut self.d_gain);
+            self.composites.push(composite_ray(
+                &self.sigma[r.clone()],
+                &m.delta[r.clone()],
+                &m.t[r],
+                &self.rgb[s0 as usize..(s0 + count) as usize],
+                behind,
+            ));
+        }
+        let per_pixel = cfg.pixel_rays.max(1) as usize;
+        self.d_colours.clear();
+        for (pixel, group) in self.composites.chunks(per_pixel).enumerate() {
+            let first_ray = range.start + pixel * per_pixel;
+            let mean: [f32; 3] =
+                std::array::from_fn(|c| group.iter().map(|g| g.rgb[c]).sum::<f32>() / group.len() as f32);
+            let d = score_pixel(
+                x,
+                rays,
+                first_ray,
+                group.len(),
+                mean,
+                &mut self.loss,
+                &mut self.ray_errors,
+                &mut self.d_gain,
+            );
+            self.d_colours.extend(std::iter::repeat_n(d, group.len()));
+        }
+        for (((i, &(s0, count)), c), &d_colour) in
+            self.kept.iter().enumerate().zip(&self.composites).zip(&self.d_colours)
+        {
+            let ray = range.start + i;
+            let r = s0 as usize..(s0 + count) as usize;
+            let (sigma, delta, t) = (&self.sigma[r.clone()], &m.delta[r.clone()], &m.t[r.clone()]);
             let (d_s, d_c) = (&mut self.d_sigma[r.clone()], &mut self.d_rgb[r.clone()]);
-            composite_ray_backward(sigma, delta, &self.rgb[r.clone()], &c, d_colour, d_s, d_c);
+            composite_ray_backward(sigma, delta, &self.rgb[r.clone()], c, d_colour, d_s, d_c);
             if cfg.distortion > 0.0 {
                 let weight = cfg.distortion / cfg.rays_per_step as f32;
                 distortion_backward(sigma, delta, t, weight, d_s, &mut self.scratch);

@@ -25,7 +25,7 @@
 
 use super::pool::{PoolInputs, RayPool};
 pub use super::step::{scale_near_gradients, CHUNK_SAMPLES, RAY_SEGMENT};
-use super::step::{StepInputs, StepRays, Worker};
+use super::step::{slot_rays, StepInputs, StepRays, Worker};
 use crate::data::View;
 use crate::field::model::Model;
 use crate::field::residual::{ResidualConfig, ResidualField, ResidualModel};
@@ -34,11 +34,12 @@ use crate::field::{NerfConfig, NerfField};
 use crate::render::{image_ray, pixel_ray, Aabb, OccupancyConfig, OccupancyGrid};
 use crate::rng::Rng;
 use crate::simd::Isa;
-use crate::slots::{slot_range, SLOTS};
+use crate::slots::SLOTS;
 use crate::train::beta::BetaRegulariser;
 use crate::train::error_map::{self, ErrorSampler, TileLayout};
 use crate::train::gains::ImageGains;
 pub use crate::train::gains::GAIN_PRIOR;
+use crate::train::pixel_filter;
 use crate::train::{Adam, AdamConfig, LrSchedule};
 use rayon::prelude::*;
 use std::time::Instant;
@@ -108,10 +109,18 @@ pub struct TrainConfig {
     /// behind it. On the dev scenes it does not change the depth (docs/DECISIONS.md, "Most of
     /// it is a one-pixel ring around the glass"). Defaults to [`PIXEL_JITTER`].
     pub pixel_jitter: bool,
+    /// Rays per training pixel. 1: one ray (through the centre, or jittered with
+    /// [`Self::pixel_jitter`]). `K > 1`: the pixel's colour is scored against the mean of `K`
+    /// rays through points drawn from the pixel filter ([`crate::train::pixel_filter`], stratified),
+    /// so a silhouette's blended pixel is explained by the edge crossing its footprint instead of
+    /// by faint density on its centre ray. The step's [`Self::rays_per_step`] rays then cover
+    /// `rays_per_step / K` pixels (it must be a multiple of `K`). Needs every ray fresh (no ray
+    /// pool). Defaults to [`PIXEL_RAYS`].
+    pub pixel_rays: u32,
     /// Times each training ray is drawn, on average, when the model is a frozen field outside
     /// a region whose occupancy grid is frozen there (the default residual method): a ray's
     /// samples outside the region are evaluated once and its rays are drawn from a pool
-    /// ([`crate::train::pool`]); 0 or 1 draws every ray fresh. Needs no distortion loss, no
+    /// ([`crate::train::pool`]); 0 or 1 draws every ray fresh. Needs no distortion loss, one ray per pixel, no
     /// near-camera gradient scaling and no error map (otherwise every ray is fresh). Defaults
     /// to [`RAY_POOL`].
     pub ray_pool: u32,
@@ -150,6 +159,12 @@ pub const FROZEN_TAIL: f32 = 0.05;
 /// Default of [`TrainConfig::pixel_jitter`]: off, measured on the dev scenes (docs/DECISIONS.md,
 /// "Most of it is a one-pixel ring around the glass").
 pub const PIXEL_JITTER: bool = false;
+
+/// Default of [`TrainConfig::pixel_rays`].
+pub const PIXEL_RAYS: u32 = 1;
+
+/// The largest [`TrainConfig::pixel_rays`] the command line and checkpoints accept.
+pub const MAX_PIXEL_RAYS: u32 = 64;
 
 /// Default of [`TrainConfig::ray_pool`]: every ray fresh. Reusing rays costs more depth than
 /// drawing fewer fresh ones (`--rays 512`) at the same time (docs/DECISIONS.md, "The ray pool").
@@ -195,6 +210,7 @@ impl TrainConfig {
             image_gains: None,
             error_map: None,
             pixel_jitter: PIXEL_JITTER,
+            pixel_rays: PIXEL_RAYS,
             ray_pool: RAY_POOL,
         }
     }
@@ -391,6 +407,12 @@ impl<'a, M: Model> Trainer<'a, M> {
         occupancy: OccupancyGrid,
     ) -> Self {
         assert!(!views.is_empty(), "train: no training views");
+        assert!(
+            cfg.pixel_rays >= 1 && cfg.rays_per_step.is_multiple_of(cfg.pixel_rays as usize),
+            "train: {} rays per step are not whole pixels of {} rays",
+            cfg.rays_per_step,
+            cfg.pixel_rays
+        );
         let grads = model.zero_grads();
         let adams = model
             .groups(&mut params, &grads)
@@ -581,6 +603,7 @@ impl<'a, M: Model> Trainer<'a, M> {
         };
         let split = model.frozen_outside().filter(|_| {
             cfg.ray_pool > 1
+                && cfg.pixel_rays == 1
                 && occupancy.is_frozen_outside_pins()
                 && cfg.distortion == 0.0
                 && cfg.near_gradient_distance == 0.0
@@ -594,16 +617,23 @@ impl<'a, M: Model> Trainer<'a, M> {
                 pool.take(step, cfg.rays_per_step, &mut srng, rays, |rng| background_colour(cfg, rng));
             }
             None => {
-                for r in 0..cfg.rays_per_step {
+                let per_pixel = cfg.pixel_rays.max(1) as usize;
+                for r in (0..cfg.rays_per_step).step_by(per_pixel) {
                     let errors = Some((&*tiles, &*sampler));
                     let (vi, p) = draw_pixel(views, cfg.focus.as_ref(), focused, errored, r, &mut srng, errors);
                     let v = &views[vi as usize];
-                    rays.view.push(vi);
-                    rays.pixel.push(p);
-                    rays.unchanged.push(is_unchanged(changed, vi, p));
-                    rays.rays.push(ray_through(v, p, cfg.pixel_jitter, &mut srng));
-                    rays.targets.push(v.rgb[p as usize]);
-                    rays.backgrounds.push(background_colour(cfg, &mut srng));
+                    let offsets = (per_pixel > 1).then(|| pixel_filter::offsets(per_pixel, &mut srng));
+                    for k in 0..per_pixel {
+                        rays.view.push(vi);
+                        rays.pixel.push(p);
+                        rays.unchanged.push(is_unchanged(changed, vi, p));
+                        rays.rays.push(match &offsets {
+                            Some(o) => pixel_filter::ray(v, p, o[k]),
+                            None => ray_through(v, p, cfg.pixel_jitter, &mut srng),
+                        });
+                        rays.targets.push(v.rgb[p as usize]);
+                        rays.backgrounds.push(background_colour(cfg, &mut srng));
+                    }
                 }
             }
         }
@@ -617,7 +647,7 @@ impl<'a, M: Model> Trainer<'a, M> {
         let inputs = StepInputs { isa, model, params: &*params, occupancy: &*occupancy, cfg, entropy, gains: &gains };
         let rays = &*rays;
         workers.par_iter_mut().zip(slots.par_iter_mut()).enumerate().for_each(|(s, (w, slot))| {
-            let range = slot_range(rays.rays.len(), s);
+            let range = slot_rays(rays.rays.len(), cfg.pixel_rays, s);
             match (split, pool.as_ref()) {
                 (Some(split), Some(pool)) => w.run_pooled(&inputs, split, pool, rays, range, slot),
                 _ => w.run(&inputs, rays, range, slot),
