@@ -11,7 +11,7 @@
 //! three of its test split (intrinsics and poses); otherwise three 200×200 cameras around the
 //! scene box. Each view is rendered 9 times; the median time is printed (the first frame also
 //! grows the renderer's buffers). SOLID_FRACTION sets `DepthRenderer::solid_fraction` (default
-//! 0.25); every view is also rendered exactly (`exact(true)`) to show what it changes.
+//! 0.5); every view is also rendered exactly (`exact(true)`) to show what it changes.
 
 use residual_nerf::app::demo_config;
 use residual_nerf::data::{workspace, Dataset, LoadOptions};

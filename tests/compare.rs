@@ -182,13 +182,31 @@ fn demo_writes_data_table_sheets_and_models_the_next_commands_read() {
     // reaches the default σ ≥ 10, which would make the comparison empty.
     let m = residual_nerf::render::DensityThreshold::Sigma(1.0);
     let depth = residual_nerf::render::DepthMethod::Threshold(m);
-    let eval = |depth_only| {
-        let crop = residual_nerf::eval::CropRule::Frame;
-        let eval = app::EvalOptions { depth, crop, limit: None, background: opts.background, depth_only };
+    let crop = residual_nerf::eval::CropRule::Frame;
+    let eval = |depth_only, solid_fraction| {
+        let eval =
+            app::EvalOptions { depth, crop, limit: None, background: opts.background, depth_only, solid_fraction };
         app::evaluate(isa, &scene, &data, &eval, |_| {})
     };
-    let (full, fast) = (eval(false), eval(true));
+    let (full, fast) = (eval(false, 0.0), eval(true, 0.0));
     assert!(full.depth.pixels > 0 && full.psnr.is_finite() && fast.psnr.is_nan());
     assert!(full.depth.holes < full.depth.pixels, "the demo model hits nothing: the comparison would be empty");
     assert_eq!((fast.depth, fast.regions), (full.depth, full.regions));
+    // With a solid fraction it scores what the onboard renderer returns at that fraction (4:
+    // the demo model is faint, and a smaller one drops none of the cells its rays stop in).
+    use residual_nerf::onboard::{DepthKind, DepthRenderer, DepthRequest};
+    let mut camera =
+        DepthRenderer::load(&models.join("glass_residual.safetensors")).unwrap().solid_fraction(4.0).unwrap();
+    let request = DepthRequest { method: depth, kind: DepthKind::Z };
+    let mut robot = residual_nerf::eval::DepthErrors::default();
+    for (v, f) in data.views.iter().zip(&data.frames) {
+        let k = &v.intrinsics;
+        let mut z = vec![0.0; (k.width * k.height) as usize];
+        camera.depth(k, &v.pose, request, &mut z).unwrap();
+        let gt = f.depth.as_ref().expect("the demo's test views have depth");
+        robot.add_frame(&z, gt, k.width, residual_nerf::eval::crop_box(crop, k.width, k.height, f.crop), None);
+    }
+    let thinned = eval(true, 4.0);
+    assert_eq!(thinned.depth, robot);
+    assert!(thinned.depth != fast.depth, "the demo model's grid has no cell the fraction drops");
 }

@@ -24,6 +24,8 @@ pub struct EvalReport {
     pub psnr: f64,
     /// Whether only threshold depth was rendered (no colour pass, no PSNR).
     pub depth_only: bool,
+    /// The depth-only path's solid fraction (0: every occupied cell marched).
+    pub solid_fraction: f32,
     /// Frames evaluated.
     pub frames: usize,
     /// Frames that had ground-truth depth.
@@ -43,7 +45,8 @@ impl EvalReport {
             "mae": num(self.depth.mae()), "rmse": num(self.depth.rmse()), "hole_rate": num(self.depth.hole_rate()),
             "psnr": num(self.psnr), "frames": self.frames, "frames_with_depth": self.frames_with_depth,
             "pixels": self.depth.pixels, "holes": self.depth.holes, "depth_kind": "z", "depth_unit": "m",
-            "depth_method": method, "depth_only": self.depth_only, "regions": self.regions.to_json(),
+            "depth_method": method, "depth_only": self.depth_only, "solid_fraction": self.solid_fraction,
+            "regions": self.regions.to_json(),
         })
     }
 }
@@ -63,6 +66,11 @@ pub struct EvalOptions {
     /// depths as the full pass, every occupied cell marched, σ only, each ray stopped at its
     /// first solid sample), no colour and no PSNR (`--depth-only`); needs a threshold `depth`.
     pub depth_only: bool,
+    /// With `depth_only`: skip the occupied cells whose occupancy value stayed below
+    /// `solid_fraction · m · δ`, as the onboard renderer does
+    /// ([`crate::onboard::DepthRenderer::solid_fraction`]; `--solid-fraction F`), so what a
+    /// robot gets is scored; 0 marches every occupied cell (the full pass's depths).
+    pub solid_fraction: f32,
 }
 
 /// Renders every view of `data` and scores it.
@@ -73,9 +81,14 @@ pub fn evaluate<M: Model>(
     opts: &EvalOptions,
     mut progress: impl FnMut(usize),
 ) -> EvalReport {
-    let EvalOptions { depth, crop, limit, background, depth_only } = *opts;
+    let EvalOptions { depth, crop, limit, background, depth_only, solid_fraction } = *opts;
     assert!(!(depth_only && depth == DepthMethod::Expected), "eval: expected depth needs the colour pass");
+    assert!(solid_fraction == 0.0 || depth_only, "eval: a solid fraction applies to the depth-only path");
     let m = depth.threshold();
+    let thinned = (solid_fraction > 0.0)
+        .then(|| scene.occupancy.keep_at_least(solid_fraction * m.min_sigma() * scene.occupancy.step_size()));
+    let depth_scene =
+        Scene { model: scene.model, params: scene.params, occupancy: thinned.as_ref().unwrap_or(scene.occupancy) };
     let mut renderer = ViewRenderer::<M>::new();
     let mut errors = DepthErrors::default();
     let mut regions = DepthReport::default();
@@ -86,7 +99,7 @@ pub fn evaluate<M: Model>(
         let n = (k.width * k.height) as usize;
         threshold.resize(n, 0.0);
         if depth_only {
-            renderer.depth(isa, scene, k, &v.pose, m, &mut threshold);
+            renderer.depth(isa, &depth_scene, k, &v.pose, m, &mut threshold);
         } else {
             rgb.resize(n, [0.0; 3]);
             expected.resize(n, 0.0);
@@ -109,6 +122,7 @@ pub fn evaluate<M: Model>(
         regions,
         psnr: if depth_only { f64::NAN } else { psnr_sum / data.views.len() as f64 },
         depth_only,
+        solid_fraction,
         frames: data.views.len(),
         frames_with_depth: with_depth,
     }
@@ -123,11 +137,12 @@ pub(super) fn run(
     limit: Option<f32>,
     json: bool,
     depth_only: bool,
+    solid_fraction: f32,
 ) -> Result<(), String> {
     let model = load_model(model)?;
     let opts = LoadOptions::default();
     let data = crate::app::load_data(data_dir, split, &opts)?;
-    let eval = EvalOptions { depth, crop, limit, background: opts.background, depth_only };
+    let eval = EvalOptions { depth, crop, limit, background: opts.background, depth_only, solid_fraction };
     let mut progress = Progress::new("eval", data.views.len() as u64);
     let tick = |i: usize| progress.update(i as u64, "views rendered");
     let isa = Isa::detect();

@@ -81,9 +81,9 @@ pub fn run(command: Command) -> Result<(), Failure> {
             set_threads(threads)?;
             render::run(&model, &data, &split, depth, depth_only, &out)?;
         }
-        Command::Eval { model, data, split, depth, crop, limit, json, depth_only, threads } => {
+        Command::Eval { model, data, split, depth, crop, limit, json, depth_only, solid_fraction, threads } => {
             set_threads(threads)?;
-            eval::run(&model, &data, &split, depth, crop, limit, json, depth_only)?;
+            eval::run(&model, &data, &split, depth, crop, limit, json, depth_only, solid_fraction)?;
         }
         Command::Bench { json, reps, log2t, threads, models, data, background_data, scene } => {
             set_threads(threads)?;

@@ -49,6 +49,9 @@ pub enum Command {
         json: bool,
         /// Threshold depth alone, no colour pass and no PSNR (`--depth-only`).
         depth_only: bool,
+        /// The depth-only path's solid fraction, as the onboard renderer's
+        /// (`--solid-fraction F`, with `--depth-only`; default 0: every occupied cell).
+        solid_fraction: f32,
         /// Worker threads (`--threads`).
         threads: Option<usize>,
     },

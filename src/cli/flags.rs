@@ -61,6 +61,7 @@ pub(super) const FLAGS: &[Flag] = &[
     Flag { name: "model", commands: &["render", "eval", "import", "bench"], setting: false },
     Flag { name: "depth", commands: &["render", "eval"], setting: false },
     Flag { name: "depth-only", commands: &["render", "eval"], setting: false },
+    Flag { name: "solid-fraction", commands: &["eval"], setting: false },
     Flag { name: "m", commands: &["render", "eval", "compare"], setting: false },
     Flag { name: "m-raw", commands: &["render", "eval", "compare"], setting: false },
     Flag { name: "crop", commands: &["eval"], setting: false },
@@ -101,6 +102,8 @@ pub(super) struct Flags {
     pub(super) limit: Option<f32>,
     pub(super) json: bool,
     pub(super) depth_only: bool,
+    /// `--solid-fraction F`.
+    pub(super) solid_fraction: Option<f32>,
     pub(super) background: Option<PathBuf>,
     pub(super) mix: Option<String>,
     pub(super) density_mix: Option<String>,
@@ -295,6 +298,13 @@ impl Flags {
             }
             "json" => self.json = true,
             "depth-only" => self.depth_only = true,
+            "solid-fraction" => {
+                let v: f32 = number(p, name)?;
+                if !(0.0..=16.0).contains(&v) {
+                    return Err(err(format!("--solid-fraction: {v} is outside [0, 16]")));
+                }
+                self.solid_fraction = Some(v);
+            }
             "fixed-background" => self.fixed_background = true,
             "data" => self.data = Some(path(p, name)?),
             "out" => self.out = Some(path(p, name)?),

@@ -134,6 +134,12 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             limit: f.limit,
             json: f.json,
             depth_only: f.depth_only,
+            solid_fraction: match (f.solid_fraction, f.depth_only) {
+                (Some(_), false) => {
+                    return Err(err("eval: --solid-fraction thins the depth-only path's grid; add --depth-only"))
+                }
+                (s, _) => s.unwrap_or(0.0),
+            },
             threads,
         },
         "compare" => Command::Compare(CompareArgs {
@@ -288,6 +294,8 @@ mod tests {
             ("compare --background b --scene s --out o --methods dex,dex", "given twice"),
             ("compare --background b --scene s --out o --m-sweep 3,x", "--m-sweep: 'x'"),
             ("compare --background b --scene s --out o --depth expected", "unexpected argument '--depth'"),
+            ("eval --model m --data d --solid-fraction 0.5", "add --depth-only"),
+            ("eval --model m --data d --depth-only --solid-fraction -1", "--solid-fraction: -1 is outside"),
             ("train --data d --out m --pixel-rays 0", "--pixel-rays: expected"),
             ("train --data d --out m --pixel-rays 3", "--pixel-rays: 1024 rays per step"),
             ("compare --background b --scene s --out o --rays 500 --pixel-rays 8", "--pixel-rays: 500 rays"),
