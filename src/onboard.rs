@@ -49,9 +49,9 @@ pub struct Extras<'a> {
 }
 
 /// Threshold depth at σ ≥ m marches only over cells whose occupancy value showed at least
-/// this fraction of m ([`OccupancyGrid::keep_at_least`]) by default; see
+/// this fraction of m ([`OccupancyGrid::keep_solid`]) by default; see
 /// [`DepthRenderer::solid_fraction`] for the trade. ½: on the seven dev models (background,
-/// Dex-NeRF and Residual-NeRF on three scenes) it is 1.5–2× faster than ¼ and scores as well
+/// Dex-NeRF and Residual-NeRF on three scenes) it is 1.4–2.4× faster than ¼ and scores as well
 /// against the ground truth — crop MAE lower on every model, object MAE within +7% / −16%
 /// (`rnerf eval --depth-only --solid-fraction F`; docs/DECISIONS.md, "The onboard renderer's
 /// solid fraction"). A model trained far short of the defaults has an under-sampled grid and
@@ -65,9 +65,9 @@ pub struct DepthRenderer {
     residual: ViewRenderer<ResidualField>,
     pool: Option<rayon::ThreadPool>,
     isa: Isa,
-    /// The occupancy grid thinned for the last threshold asked for, keyed by the minimum
-    /// cell value it keeps (built once per threshold).
-    solid: Option<(f32, OccupancyGrid)>,
+    /// The occupancy grid thinned for the last threshold asked for, keyed by the solid
+    /// fraction and the threshold's σ (built once per pair).
+    solid: Option<((f32, f32), OccupancyGrid)>,
     solid_fraction: f32,
     /// The last intrinsics whose lens passed [`crate::geometry::Distortion::check`]: a robot
     /// renders one camera frame after frame, so the check runs once per camera, not per frame.
@@ -214,9 +214,8 @@ impl DepthRenderer {
         };
         let grid = match fast {
             Some(min_sigma) => {
-                let min_value = fraction * min_sigma * occupancy.step_size();
-                if solid.as_ref().is_none_or(|(v, _)| *v != min_value) {
-                    *solid = Some((min_value, occupancy.keep_at_least(min_value)));
+                if solid.as_ref().is_none_or(|(key, _)| *key != (fraction, min_sigma)) {
+                    *solid = Some(((fraction, min_sigma), occupancy.keep_solid(fraction, min_sigma)));
                 }
                 &solid.as_ref().expect("built above").1
             }

@@ -85,8 +85,7 @@ pub fn evaluate<M: Model>(
     assert!(!(depth_only && depth == DepthMethod::Expected), "eval: expected depth needs the colour pass");
     assert!(solid_fraction == 0.0 || depth_only, "eval: a solid fraction applies to the depth-only path");
     let m = depth.threshold();
-    let thinned = (solid_fraction > 0.0)
-        .then(|| scene.occupancy.keep_at_least(solid_fraction * m.min_sigma() * scene.occupancy.step_size()));
+    let thinned = (solid_fraction > 0.0).then(|| scene.occupancy.keep_solid(solid_fraction, m.min_sigma()));
     let depth_scene =
         Scene { model: scene.model, params: scene.params, occupancy: thinned.as_ref().unwrap_or(scene.occupancy) };
     let mut renderer = ViewRenderer::<M>::new();

@@ -227,7 +227,7 @@ impl OccupancyGrid {
             *old = if new.is_finite() { decayed.max(new) } else { decayed };
         };
         if self.frozen {
-            // The pinned cells' values only (what `keep_at_least` reads; each drawn once); every
+            // The pinned cells' values only (what `keep_solid` reads; each drawn once); every
             // bit stays: the frozen cells keep theirs, the pinned ones are set.
             for (&i, &v) in cells.iter().zip(&drawn) {
                 refresh(&mut self.values[i as usize], v);
@@ -317,11 +317,14 @@ impl OccupancyGrid {
         }
     }
 
-    /// A copy in which a cell stays occupied only if its value (the largest `σ·δ_min` seen at
-    /// its sampled points, decayed) also reaches `min_value`: for threshold depth at σ ≥ m,
-    /// cells that never showed a density near m are marched over without evaluating the field.
-    /// An approximation (a cell's value is sampled, not its true maximum).
-    pub fn keep_at_least(&self, min_value: f32) -> OccupancyGrid {
+    /// For threshold depth at σ ≥ `min_sigma`: a copy in which a cell stays occupied only if
+    /// its value (the largest `σ·δ_min` seen at its sampled points, decayed) also reaches
+    /// `fraction · min_sigma · δ_min`, so cells that never showed a density near the threshold
+    /// are marched over without evaluating the field (the onboard renderer's solid fraction,
+    /// `rnerf eval --solid-fraction`, the prior's depth renders). An approximation: a cell's
+    /// value is sampled, not its true maximum.
+    pub fn keep_solid(&self, fraction: f32, min_sigma: f32) -> OccupancyGrid {
+        let min_value = fraction * min_sigma * self.step_size;
         let mut g = self.clone();
         for (i, &v) in self.values.iter().enumerate() {
             if v < min_value {

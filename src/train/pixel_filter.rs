@@ -48,19 +48,20 @@ pub fn offset_at(u: f32) -> f32 {
     ((0.5 * (lo + hi) - 0.5) * FILTER_WIDTH as f64) as f32
 }
 
-/// `k` stratified offsets `(dx, dy)` from a pixel's centre, drawn from the filter.
-pub fn offsets(k: usize, rng: &mut Rng) -> Vec<(f32, f32)> {
-    let mut perm: Vec<usize> = (0..k).collect();
+/// `k` stratified offsets `(dx, dy)` from a pixel's centre, drawn from the filter, into `out`
+/// (its old contents replaced; the y strata are first laid out in it as the permutation).
+pub fn offsets(k: usize, rng: &mut Rng, out: &mut Vec<(f32, f32)>) {
+    // The Latin hypercube's pairing: x stratum i takes y stratum out[i].1.
+    out.clear();
+    out.extend((0..k).map(|i| (0.0, i as f32)));
     for i in (1..k).rev() {
-        perm.swap(i, rng.below(i as u64 + 1) as usize);
+        out.swap(i, rng.below(i as u64 + 1) as usize);
     }
-    (0..k)
-        .map(|i| {
-            let ux = (i as f32 + rng.uniform(0.0, 1.0)) / k as f32;
-            let uy = (perm[i] as f32 + rng.uniform(0.0, 1.0)) / k as f32;
-            (offset_at(ux), offset_at(uy))
-        })
-        .collect()
+    for (i, o) in out.iter_mut().enumerate() {
+        let ux = (i as f32 + rng.uniform(0.0, 1.0)) / k as f32;
+        let uy = (o.1 + rng.uniform(0.0, 1.0)) / k as f32;
+        *o = (offset_at(ux), offset_at(uy));
+    }
 }
 
 /// The ray through pixel `p` of `v` moved by `offset` pixels from its centre.
@@ -92,7 +93,8 @@ mod tests {
     fn stratified_offsets_take_one_stratum_of_each_axis() {
         let mut rng = Rng::new(3);
         for k in [1usize, 2, 4, 5] {
-            let o = offsets(k, &mut rng);
+            let mut o = Vec::new();
+            offsets(k, &mut rng, &mut o);
             for axis in 0..2 {
                 let mut strata: Vec<usize> = o
                     .iter()

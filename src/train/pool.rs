@@ -440,7 +440,7 @@ mod tests {
             workers.iter_mut().for_each(|w| w.segment = fresh.unwrap_or(RAY_SEGMENT));
             let mut slots: Vec<_> = (0..SLOTS).map(|_| Default::default()).collect();
             for (s, (w, slot)) in workers.iter_mut().zip(slots.iter_mut()).enumerate() {
-                let range = crate::train::step::slot_rays(rays.rays.len(), cfg.pixel_rays, s);
+                let range = crate::train::step::slot_rays(rays.rays.len(), cfg.rays_per_pixel(), s);
                 match fresh {
                     None => w.run_pooled(&inputs, split, &pool, rays, range, slot),
                     Some(_) => w.run(&inputs, rays, range, slot),

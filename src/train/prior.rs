@@ -100,7 +100,7 @@ pub struct PriorConfig {
     /// The background's threshold depth at a scene view's pose (what the vote and the reach
     /// pixels read as its surface), when only depth is rendered, is rendered on its occupancy
     /// grid kept to the cells whose value reached this fraction of `m·δ`
-    /// ([`OccupancyGrid::keep_at_least`], the onboard renderer's trade): the rays cross the
+    /// ([`OccupancyGrid::keep_solid`], the onboard renderer's trade): the rays cross the
     /// cells that never showed a density near the threshold without evaluating it. 0: the whole
     /// grid. Defaults to [`DEPTH_SOLID_FRACTION`].
     pub depth_solid_fraction: f32,
@@ -349,7 +349,7 @@ fn background_at(
     // The thinned grid only when some view is rendered for its depth alone.
     let grid = &background.occupancy;
     let depth_only = rendered.iter().zip(matches).any(|(done, matched)| done.is_none() && matched.is_some());
-    let solid = depth_only.then(|| grid.keep_at_least(solid_fraction * m.min_sigma() * grid.step_size()));
+    let solid = depth_only.then(|| grid.keep_solid(solid_fraction, m.min_sigma()));
     let depth_scene = Scene { occupancy: solid.as_ref().unwrap_or(grid), ..Scene::from(background) };
     let each = views.iter().zip(matches).zip(rendered);
     each.map(|((v, matched), done)| {

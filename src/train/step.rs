@@ -56,11 +56,10 @@ impl StepRays {
     }
 }
 
-/// The rays of slot `s` among a step's `n` rays: whole pixels of `pixel_rays` rays each
-/// ([`TrainConfig::pixel_rays`]; a pixel's rays are scored together), split as
+/// The rays of slot `s` among a step's `n` rays: whole pixels of `k` rays each
+/// ([`TrainConfig::rays_per_pixel`]; a pixel's rays are scored together), split as
 /// [`crate::slots::slot_range`] splits the pixels.
-pub(super) fn slot_rays(n: usize, pixel_rays: u32, s: usize) -> std::ops::Range<usize> {
-    let k = pixel_rays.max(1) as usize;
+pub(super) fn slot_rays(n: usize, k: usize, s: usize) -> std::ops::Range<usize> {
     let pixels = crate::slots::slot_range(n / k, s);
     pixels.start * k..pixels.end * k
 }
@@ -156,10 +155,8 @@ fn score_pixel<M: Model>(
     let sq: f32 = err.iter().map(|e| e * e).sum();
     errors.extend(std::iter::repeat_n(sq / 3.0, n));
     *loss += n as f64 * err.iter().map(|e| (e * e) as f64).sum::<f64>();
-    match n {
-        1 => d_mean,
-        _ => d_mean.map(|d| d / n as f32),
-    }
+    // x / 1 is x exactly: one ray per pixel keeps its gradient's bits.
+    d_mean.map(|d| d / n as f32)
 }
 
 /// Ray `ray`'s weights of the β penalty (0 on a changed ray) and of the β entropy, each per ray
@@ -275,7 +272,7 @@ impl<C> Worker<C> {
     ) {
         self.begin_run(x, slot);
         // A chunk ends after a whole pixel's rays (they are scored together).
-        let per_pixel = x.cfg.pixel_rays.max(1) as usize;
+        let per_pixel = x.cfg.rays_per_pixel();
         let mut first = range.start;
         for i in range.clone() {
             self.add_ray(x, &rays.rays[i]);
@@ -539,12 +536,12 @@ impl<C> Worker<C> {
             self.composites.push(composite_ray(
                 &self.sigma[r.clone()],
                 &m.delta[r.clone()],
-                &m.t[r],
-                &self.rgb[s0 as usize..(s0 + count) as usize],
+                &m.t[r.clone()],
+                &self.rgb[r],
                 behind,
             ));
         }
-        let per_pixel = cfg.pixel_rays.max(1) as usize;
+        let per_pixel = cfg.rays_per_pixel();
         self.d_colours.clear();
         for (pixel, group) in self.composites.chunks(per_pixel).enumerate() {
             let first_ray = range.start + pixel * per_pixel;

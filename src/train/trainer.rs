@@ -183,6 +183,12 @@ pub const TRAIN_STEPS: u32 = 1000;
 pub const TRAIN_RAYS: usize = 1024;
 
 impl TrainConfig {
+    /// Rays per training pixel ([`Self::pixel_rays`], at least 1): the step's rays come in
+    /// groups of this many per pixel, and slots and chunks take whole groups.
+    pub fn rays_per_pixel(&self) -> usize {
+        self.pixel_rays.max(1) as usize
+    }
+
     /// The defaults (what `rnerf train` does for images without alpha) for `steps` steps: the
     /// learning-rate schedule scales with it.
     pub fn with_steps(steps: u32) -> TrainConfig {
@@ -617,21 +623,25 @@ impl<'a, M: Model> Trainer<'a, M> {
                 pool.take(step, cfg.rays_per_step, &mut srng, rays, |rng| background_colour(cfg, rng));
             }
             None => {
-                let per_pixel = cfg.pixel_rays.max(1) as usize;
+                let per_pixel = cfg.rays_per_pixel();
+                let mut offsets = Vec::with_capacity(per_pixel);
                 for r in (0..cfg.rays_per_step).step_by(per_pixel) {
                     let errors = Some((&*tiles, &*sampler));
                     let (vi, p) = draw_pixel(views, cfg.focus.as_ref(), focused, errored, r, &mut srng, errors);
                     let v = &views[vi as usize];
-                    let offsets = (per_pixel > 1).then(|| pixel_filter::offsets(per_pixel, &mut srng));
+                    let (unchanged, target) = (is_unchanged(changed, vi, p), v.rgb[p as usize]);
+                    if per_pixel > 1 {
+                        pixel_filter::offsets(per_pixel, &mut srng, &mut offsets);
+                    }
                     for k in 0..per_pixel {
                         rays.view.push(vi);
                         rays.pixel.push(p);
-                        rays.unchanged.push(is_unchanged(changed, vi, p));
-                        rays.rays.push(match &offsets {
-                            Some(o) => pixel_filter::ray(v, p, o[k]),
-                            None => ray_through(v, p, cfg.pixel_jitter, &mut srng),
+                        rays.unchanged.push(unchanged);
+                        rays.rays.push(match per_pixel {
+                            1 => ray_through(v, p, cfg.pixel_jitter, &mut srng),
+                            _ => pixel_filter::ray(v, p, offsets[k]),
                         });
-                        rays.targets.push(v.rgb[p as usize]);
+                        rays.targets.push(target);
                         rays.backgrounds.push(background_colour(cfg, &mut srng));
                     }
                 }
@@ -647,7 +657,7 @@ impl<'a, M: Model> Trainer<'a, M> {
         let inputs = StepInputs { isa, model, params: &*params, occupancy: &*occupancy, cfg, entropy, gains: &gains };
         let rays = &*rays;
         workers.par_iter_mut().zip(slots.par_iter_mut()).enumerate().for_each(|(s, (w, slot))| {
-            let range = slot_rays(rays.rays.len(), cfg.pixel_rays, s);
+            let range = slot_rays(rays.rays.len(), cfg.rays_per_pixel(), s);
             match (split, pool.as_ref()) {
                 (Some(split), Some(pool)) => w.run_pooled(&inputs, split, pool, rays, range, slot),
                 _ => w.run(&inputs, rays, range, slot),
