@@ -1,6 +1,7 @@
 //! Whole-view rendering: the segmented, early-stopping [`ViewRenderer`] gives what marching
 //! each ray in one go and compositing it whole gives (colour, expected and threshold z-depth),
-//! and the depth-only path gives the same threshold depth as the full one.
+//! and the depth-only path gives the same threshold depth as the full one, for any number of
+//! samples per round.
 
 use glam::Vec3;
 use residual_nerf::data::synth;
@@ -68,6 +69,15 @@ fn segmented_rendering_equals_whole_ray_compositing() {
                 FullOutputs { rgb: &mut rgb, expected_z: &mut ez, threshold_z: &mut tz, beta: &mut [] },
             );
             renderer.depth(isa, &(&nerf).into(), k, &v.pose, m, &mut dz);
+            // Rounds of any length continue where the last stopped: the same bits.
+            for round in [1, 3, 4, 64] {
+                let mut other = ViewRenderer::new();
+                other.set_depth_round(round);
+                let mut oz = vec![0.0; n];
+                other.depth(isa, &(&nerf).into(), k, &v.pose, m, &mut oz);
+                let bits = |z: &[f32]| z.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&oz), bits(&dz), "depth rounds of {round} samples");
+            }
             let mut hits = 0;
             for p in 0..n {
                 let (ray, s, pos, dirs) = whole_ray(&nerf.occupancy, k, &v.pose, p);

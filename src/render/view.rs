@@ -5,7 +5,7 @@
 //! finish. Rays are marched in **segments** so work stops where the answer is known:
 //! - [`ViewRenderer::depth`] — threshold depth only: evaluates only σ (the density networks'
 //!   first outputs, [`Model::chunk_density_only`], a chunk at a time on the worker's thread)
-//!   and stops each ray at its first solid sample (the robot's hot path), 4 samples per round;
+//!   and stops each ray at its first solid sample (the robot's hot path), 2 samples per round;
 //! - [`ViewRenderer::full`] — colour, expected depth and threshold depth (and β): the training
 //!   step's chunk path a chunk at a time on the worker's thread — σ of every marched sample,
 //!   colour and β only of the samples a ray composites (before it turns opaque, `T < 1e-4`, as
@@ -31,9 +31,12 @@ use std::sync::Mutex;
 /// Pixels per tile: the rays one worker marches together (rounded to whole image rows). Small
 /// enough that a round's encodings and activations stay in L2, large enough to batch the MLP.
 const TILE_PIXELS: usize = 1024;
-/// Samples per ray per round of the depth-only path (rays stop at their first solid sample, so
-/// short segments waste little; a tile keeps the batch large).
-const DEPTH_SEGMENT: usize = 4;
+/// Samples per ray per round of the depth-only path. Rays stop at their first solid sample,
+/// and every sample a round marches past it is evaluated for nothing: at the onboard solid
+/// fraction a dev table-top ray's hit is its 4th–5th marched sample, so 4 per round evaluated
+/// 6.6 samples a ray and 2 evaluate 5.2 (docs/DECISIONS.md, "Depth-only rounds of two
+/// samples"); a tile keeps the batch large.
+pub const DEPTH_SEGMENT: usize = 2;
 /// Samples per evaluation on a worker's thread (both paths): encodings and activations of this
 /// many stay in L1/L2.
 const CHUNK: usize = 256;
@@ -142,11 +145,13 @@ impl<M: Model> Default for Worker<M> {
 /// its core's cache. Tiles do not depend on the thread count, and neither do the results.
 pub struct ViewRenderer<M: Model = NerfField> {
     workers: Vec<Worker<M>>,
+    /// Samples per ray per round of the depth-only path ([`ViewRenderer::set_depth_round`]).
+    depth_round: usize,
 }
 
 impl<M: Model> Default for ViewRenderer<M> {
     fn default() -> Self {
-        ViewRenderer { workers: Vec::new() }
+        ViewRenderer { workers: Vec::new(), depth_round: DEPTH_SEGMENT }
     }
 }
 
@@ -176,6 +181,13 @@ impl<M: Model> ViewRenderer<M> {
     /// An empty renderer (buffers grow on first use).
     pub fn new() -> ViewRenderer<M> {
         ViewRenderer::default()
+    }
+
+    /// Samples each ray marches per round of [`ViewRenderer::depth`] (default
+    /// [`DEPTH_SEGMENT`], at least 1). Only the speed depends on it: every round continues
+    /// where the last stopped, so the depths are the same bits for any value (tested).
+    pub fn set_depth_round(&mut self, samples: usize) {
+        self.depth_round = samples.max(1);
     }
 
     /// Threshold z-depth of every pixel into `z` (`width × height`), NaN for holes.
@@ -232,6 +244,7 @@ impl<M: Model> ViewRenderer<M> {
     ) {
         let n = (k.width * k.height) as usize;
         let tile = (TILE_PIXELS / k.width as usize).max(1) * k.width as usize;
+        let first = if full { FIRST_SEGMENT } else { self.depth_round };
         let threads = rayon::current_num_threads().clamp(1, n.div_ceil(tile).max(1));
         if self.workers.len() < threads {
             self.workers.resize_with(threads, Worker::default);
@@ -247,14 +260,15 @@ impl<M: Model> ViewRenderer<M> {
         };
         self.workers[..threads].par_iter_mut().for_each(|w| {
             while let Some((pixels, out)) = next_tile() {
-                w.run_tile(isa, scene, k, pose, pixels, m, full, background, out);
+                w.run_tile(isa, scene, k, pose, pixels, m, full, first, background, out);
             }
         });
     }
 }
 
 impl<M: Model> Worker<M> {
-    /// Marches and evaluates pixels `pixels` to completion and writes their outputs.
+    /// Marches and evaluates pixels `pixels` to completion and writes their outputs; `first`
+    /// samples per ray in the first round (the full path doubles it each round).
     #[allow(clippy::too_many_arguments)]
     fn run_tile(
         &mut self,
@@ -265,6 +279,7 @@ impl<M: Model> Worker<M> {
         pixels: std::ops::Range<usize>,
         m: DensityThreshold,
         full: bool,
+        first: usize,
         background: [f32; 3],
         out: FullOutputs<'_>,
     ) {
@@ -291,7 +306,7 @@ impl<M: Model> Worker<M> {
                 acc: RayAccumulator::new(),
             });
         }
-        let mut segment = if full { FIRST_SEGMENT } else { DEPTH_SEGMENT };
+        let mut segment = first;
         while !self.active.is_empty() {
             self.seg.clear();
             self.t.clear();
