@@ -309,3 +309,51 @@ fn a_grid_frozen_outside_its_pins_refreshes_the_pinned_cells_only() {
     unfrozen.update(0, &mut Rng::new(3), |_, s| s.fill(1e3));
     assert_eq!(unfrozen.occupancy(), 1.0);
 }
+
+/// Settling a pinned region: each pinned cell's value rises to the densest σ·δ on a lattice
+/// in it, so a sheet thinner than a cell that a refresh's single point missed is found (the
+/// lattice's spacing is a quarter cell, so a sheet a quarter cell thick always holds a point);
+/// values never drop, and no bit and no cell outside the pins changes.
+#[test]
+fn settling_the_pinned_cells_finds_a_sheet_the_refreshes_missed() {
+    let r = 32u32;
+    let cell = 1.0 / r as f32;
+    // Pinned: the cells x = 8..10 (a slab of 2 × 32 × 32 cells); in it a sheet of density
+    // 50 a quarter cell thick at x in [8.6, 8.85) cells; elsewhere the sphere of sphere_grid.
+    let pinned: Vec<u32> = (0..r * r * r).filter(|i| (8..10).contains(&(i % r))).collect();
+    let sheet = |p: &Vec3| (8.6 * cell..8.85 * cell).contains(&p.x);
+    let field = |points: &[Vec3], sigma: &mut [f32]| {
+        sphere(points, sigma);
+        for (p, s) in points.iter().zip(sigma) {
+            if sheet(p) {
+                *s = 50.0;
+            }
+        }
+    };
+    let mut g = sphere_grid();
+    g.pin(&ChangeRegion::from_cells(unit_box(), r, &pinned).unwrap());
+    g.freeze_outside_pins();
+    // The refreshes' points: one per pinned cell; most of the sheet's cells stay under-reported.
+    g.update(100, &mut Rng::new(5), field);
+    let sheet_cells: Vec<u32> = pinned.iter().copied().filter(|i| i % r == 8).collect();
+    let want = 50.0 * g.step_size();
+    let missed = sheet_cells.iter().filter(|&&i| g.values()[i as usize] < want).count();
+    assert!(missed > sheet_cells.len() / 2, "the single points should miss the sheet ({missed} missed)");
+    let (values, occupancy) = (g.values().to_vec(), g.occupancy());
+    g.settle_pinned(4, field);
+    for (i, (&a, &b)) in g.values().iter().zip(&values).enumerate() {
+        assert!(a >= b, "cell {i}: settling lowered its value ({b} -> {a})");
+        if pinned.binary_search(&(i as u32)).is_err() {
+            assert_eq!(a.to_bits(), b.to_bits(), "cell {i} outside the pins changed");
+        }
+    }
+    for &i in &sheet_cells {
+        assert_eq!(g.values()[i as usize], want, "sheet cell {i} not found");
+    }
+    assert_eq!(g.occupancy(), occupancy, "settling changed the bits");
+    // Without pins it does nothing.
+    let mut plain = sphere_grid();
+    let before = plain.values().to_vec();
+    plain.settle_pinned(4, |_, s| s.fill(1e3));
+    assert_eq!(plain.values(), &before[..]);
+}

@@ -256,6 +256,42 @@ impl OccupancyGrid {
         self.frozen = true;
     }
 
+    /// Raises each pinned cell's value to the largest `σ·δ_min` at the centres of a
+    /// `per_edge³` lattice inside it, if that is larger (values never drop; no bit changes).
+    /// For the end of a residual model's training: a refresh draws one point per cell, so a
+    /// briefly trained model's values under-report surfaces thinner than a cell, and the
+    /// renderers that skip cells by value ([`Self::keep_solid`]) lose them. `density` as in
+    /// [`Self::update`]. No-op on a grid without pins.
+    pub fn settle_pinned(&mut self, per_edge: u32, mut density: impl FnMut(&[Vec3], &mut [f32])) {
+        let Some(p) = &self.pinned else { return };
+        let cells = super::set_bits(p, self.values.len());
+        let r = self.config.resolution;
+        let cell_size = self.aabb.size() / r as f32;
+        let per_cell = (per_edge * per_edge * per_edge) as usize;
+        let lattice: Vec<Vec3> = (0..per_cell as u32)
+            .map(|j| {
+                let (x, y, z) = (j % per_edge, j / per_edge % per_edge, j / (per_edge * per_edge));
+                (Vec3::new(x as f32, y as f32, z as f32) + 0.5) / per_edge as f32
+            })
+            .collect();
+        let batch = ((1usize << 14) / per_cell).max(1);
+        let (mut points, mut sigma) = (Vec::with_capacity(batch * per_cell), vec![0f32; batch * per_cell]);
+        for chunk in cells.chunks(batch) {
+            points.clear();
+            for &i in chunk {
+                let corner = Vec3::new((i % r) as f32, (i / r % r) as f32, (i / (r * r)) as f32);
+                points.extend(lattice.iter().map(|&u| self.aabb.min + (corner + u) * cell_size));
+            }
+            let sigma = &mut sigma[..points.len()];
+            density(&points, sigma);
+            for (&i, s) in chunk.iter().zip(sigma.chunks(per_cell)) {
+                let densest = s.iter().filter(|v| v.is_finite()).fold(0f32, |a, &v| a.max(v));
+                let v = &mut self.values[i as usize];
+                *v = v.max(densest * self.step_size);
+            }
+        }
+    }
+
     /// Whether the cells outside the pinned ones are frozen.
     pub fn is_frozen_outside_pins(&self) -> bool {
         self.frozen

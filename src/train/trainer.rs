@@ -286,6 +286,11 @@ pub fn train_residual(
     Ok(ResidualModel { field, params, occupancy })
 }
 
+/// Points per cell edge of the lattice that settles a residual model's change-region cell
+/// values after its last step ([`OccupancyGrid::settle_pinned`]; docs/DECISIONS.md, "The
+/// onboard renderer's solid fraction").
+pub const SETTLE_LATTICE: u32 = 4;
+
 /// Consecutive skipped (non-finite) steps after which training gives up
 /// ([`TrainError::NonFinite`]); the parameters are then those of the last good step.
 pub const MAX_BAD_STEPS_IN_A_ROW: u32 = 16;
@@ -705,6 +710,11 @@ impl<'a, M: Model> Trainer<'a, M> {
         // groups() lent them out mutably.
         model.after_step(params);
         state.step += 1;
+        if state.step == cfg.steps && occupancy.is_frozen_outside_pins() {
+            // The run's end: the change region's cell values from a lattice in each cell, not
+            // the refreshes' single points (what the renderers that skip cells by value read).
+            occupancy.settle_pinned(SETTLE_LATTICE, |pts, sigma| model.density(isa, params, pts, sigma, ctx));
+        }
         if *bad_in_a_row >= MAX_BAD_STEPS_IN_A_ROW {
             return Err(TrainError::NonFinite { step, skipped: state.skipped });
         }
