@@ -105,7 +105,8 @@ fn run<M: Model>(scene: &Scene<'_, M>, views: &[(Intrinsics, Pose)], lengths: &[
         );
     }
     for (i, &l) in lengths.iter().enumerate() {
-        let same = depth[i].iter().zip(&depth[0]).all(|(a, b)| a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits()));
+        let same =
+            depth[i].iter().zip(&depth[0]).all(|(a, b)| a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits()));
         let mut line = format!("round of {l}: depths equal the first length's bit for bit: {same};");
         for t in &mut ms[i] {
             t.sort_by(f64::total_cmp);
