@@ -3,7 +3,8 @@
 # fraction (`DepthRenderer::solid_fraction`; `rnerf eval --depth-only --solid-fraction F`):
 # one JSON per model and fraction, then a table (the frames' crop MAE and RMSE, object MAE,
 # near-crop RMSE, crop-without-object MAE, hole rate; "–" where a split has no object masks).
-# usage: scripts/solid_fraction.sh OUT_DIR MODEL:DATA_DIR [MODEL:DATA_DIR ...]
+# usage: scripts/solid_fraction.sh OUT_DIR [MODEL:DATA_DIR ...]
+#   (no MODEL:DATA_DIR pairs: only the table of the JSONs already in OUT_DIR)
 #   FRACTIONS  space-separated (default "0 0.25 0.5 0.75 1")
 set -euo pipefail
 out=$1; shift

@@ -54,8 +54,10 @@ pub struct Extras<'a> {
 /// Dex-NeRF and Residual-NeRF on three scenes) it is 1.4–2.4× faster than ¼ and scores as well
 /// against the ground truth — crop MAE lower on every model, object MAE within +7% / −16%
 /// (`rnerf eval --depth-only --solid-fraction F`; docs/DECISIONS.md, "The onboard renderer's
-/// solid fraction"). A model trained far short of the defaults has an under-sampled grid and
-/// loses surfaces at ½: render it with `solid_fraction(0.25)` or `exact(true)`.
+/// solid fraction"). A residual model settles its change region's cell values at the end of
+/// training, so a briefly trained one keeps its glass at ½; a plain NeRF trained far short of
+/// the defaults has an under-sampled grid and loses surfaces at ½: render it with
+/// `solid_fraction(0.25)` or `exact(true)`.
 pub const SOLID_FRACTION: f32 = 0.5;
 
 /// A loaded model (plain NeRF or residual) and the reusable buffers to render it.
