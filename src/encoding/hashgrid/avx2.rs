@@ -1,5 +1,6 @@
-//! AVX2 + FMA + F16C hash-grid kernels: 8 samples per vector, one `vpgatherdd` per corner
-//! (each lane fetches a packed fp16 pair), `vcvtph2ps` to expand. Twin of [`super::scalar`].
+//! AVX2 + FMA + F16C hash-grid kernels: 8 samples per vector, one 8-lane load per corner
+//! (each lane a packed fp16 pair, fetched by eight scalar loads rather than `vpgatherdd`:
+//! see [`load8`]), `vcvtph2ps` to expand. Twin of [`super::scalar`].
 
 use super::{LevelInfo, Soa, PRIME_Y, PRIME_Z};
 use crate::simd::safe_entry;
@@ -65,6 +66,32 @@ unsafe fn corners8(level: &LevelInfo, soa: &Soa, i: usize) -> ([__m256i; 8], [__
     }
 }
 
+/// The 32-bit words `base[idx[0..8]]` as one vector: eight scalar loads, not `vpgatherdd`.
+/// The gather instruction is microcoded on AMD Zen 2/3 and slowed by Intel's Gather Data
+/// Sampling mitigation; the scalar loads gave 3–7% faster threshold-depth views on a Zen 3
+/// guest with the same bits (docs/DECISIONS.md, "The hash grid's AVX2 corner loads").
+///
+/// # Safety
+/// AVX2; every lane of `idx` indexes inside the slice `base` points into.
+#[inline(always)]
+unsafe fn load8(base: *const i32, idx: __m256i) -> __m256i {
+    // SAFETY: the caller guarantees AVX2 and in-bounds indices.
+    unsafe {
+        let mut ix = [0i32; 8];
+        _mm256_storeu_si256(ix.as_mut_ptr() as *mut __m256i, idx);
+        _mm256_setr_epi32(
+            *base.add(ix[0] as usize),
+            *base.add(ix[1] as usize),
+            *base.add(ix[2] as usize),
+            *base.add(ix[3] as usize),
+            *base.add(ix[4] as usize),
+            *base.add(ix[5] as usize),
+            *base.add(ix[6] as usize),
+            *base.add(ix[7] as usize),
+        )
+    }
+}
+
 /// AVX2 twin of [`super::scalar::forward_level`].
 ///
 /// # Safety
@@ -92,7 +119,7 @@ unsafe fn forward_level_unchecked(
             let mut acc_lo = _mm256_setzero_ps();
             let mut acc_hi = _mm256_setzero_ps();
             for c in 0..8 {
-                let g = _mm256_i32gather_epi32::<4>(base, idx[c]);
+                let g = load8(base, idx[c]);
                 let lo = _mm256_cvtph_ps(_mm256_castsi256_si128(g));
                 let hi = _mm256_cvtph_ps(_mm256_extracti128_si256::<1>(g));
                 acc_lo = _mm256_fmadd_ps(lo, _mm256_permutevar8x32_ps(w[c], dup_lo), acc_lo);
