@@ -1,6 +1,6 @@
 //! AVX2 + FMA + F16C hash-grid kernels: 8 samples per vector, one 8-lane load per corner
-//! (each lane a packed fp16 pair, fetched by eight scalar loads rather than `vpgatherdd`:
-//! see [`load8`]), `vcvtph2ps` to expand. Twin of [`super::scalar`].
+//! (each lane a packed fp16 pair: `vpgatherdd`, or eight scalar loads on AMD, see
+//! [`CornerLoads`]), `vcvtph2ps` to expand. Twin of [`super::scalar`].
 
 use super::{LevelInfo, Soa, PRIME_Y, PRIME_Z};
 use crate::simd::safe_entry;
@@ -66,17 +66,48 @@ unsafe fn corners8(level: &LevelInfo, soa: &Soa, i: usize) -> ([__m256i; 8], [__
     }
 }
 
-/// The 32-bit words `base[idx[0..8]]` as one vector: eight scalar loads, not `vpgatherdd`.
-/// The gather instruction is microcoded on AMD Zen 2/3 and slowed by Intel's Gather Data
-/// Sampling mitigation; the scalar loads gave 3–7% faster threshold-depth views on a Zen 3
-/// guest with the same bits (docs/DECISIONS.md, "The hash grid's AVX2 corner loads").
+/// How the forward fetches a corner's eight table words. Either way the same words, so the
+/// same bits; only the speed differs, by CPU vendor.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CornerLoads {
+    /// One `vpgatherdd`: executed in hardware on Intel cores (a 16-lane gather in 3.2–3.8 ns
+    /// on an L1-resident table, BENCHMARKS.md's Xeon notes).
+    Gather,
+    /// Eight scalar loads: AMD Zen microcodes `vpgatherdd`; on a Zen 3 guest the scalar loads
+    /// made threshold-depth views faster with the same bits (docs/DECISIONS.md, "The hash
+    /// grid's corner loads on AVX2").
+    Scalar,
+}
+
+impl CornerLoads {
+    /// The host's: [`CornerLoads::Scalar`] on AMD (and Hygon) CPUs, else
+    /// [`CornerLoads::Gather`]. Read once per process.
+    pub fn detect() -> CornerLoads {
+        static LOADS: std::sync::OnceLock<CornerLoads> = std::sync::OnceLock::new();
+        *LOADS.get_or_init(|| {
+            // Leaf 0: the vendor string (every x86_64 CPU has it).
+            let id = __cpuid(0);
+            let vendor: Vec<u8> = [id.ebx, id.edx, id.ecx].iter().flat_map(|r| r.to_le_bytes()).collect();
+            match &vendor[..] {
+                b"AuthenticAMD" | b"HygonGenuine" => CornerLoads::Scalar,
+                _ => CornerLoads::Gather,
+            }
+        })
+    }
+}
+
+/// The 32-bit words `base[idx[0..8]]` as one vector, fetched as `SCALAR` says
+/// ([`CornerLoads`]).
 ///
 /// # Safety
 /// AVX2; every lane of `idx` indexes inside the slice `base` points into.
 #[inline(always)]
-unsafe fn load8(base: *const i32, idx: __m256i) -> __m256i {
+unsafe fn load8<const SCALAR: bool>(base: *const i32, idx: __m256i) -> __m256i {
     // SAFETY: the caller guarantees AVX2 and in-bounds indices.
     unsafe {
+        if !SCALAR {
+            return _mm256_i32gather_epi32::<4>(base, idx);
+        }
         let mut ix = [0i32; 8];
         _mm256_storeu_si256(ix.as_mut_ptr() as *mut __m256i, idx);
         _mm256_setr_epi32(
@@ -92,12 +123,53 @@ unsafe fn load8(base: *const i32, idx: __m256i) -> __m256i {
     }
 }
 
-/// AVX2 twin of [`super::scalar::forward_level`].
+/// AVX2 twin of [`super::scalar::forward_level`], its corner loads the host's
+/// ([`CornerLoads::detect`]).
 ///
 /// # Safety
 /// The CPU must support AVX2, FMA and F16C; `table` is the level's slice.
 #[target_feature(enable = "avx2,fma,f16c")]
 unsafe fn forward_level_unchecked(
+    level: &LevelInfo,
+    table: &[u32],
+    soa: &Soa,
+    n: usize,
+    out: &mut [f32],
+    stride: usize,
+) {
+    // SAFETY: forwarded from the caller.
+    unsafe { forward_level_with(CornerLoads::detect(), level, table, soa, n, out, stride) }
+}
+
+/// [`forward_level_unchecked`] with the corner loads given.
+///
+/// # Safety
+/// As [`forward_level_unchecked`].
+#[target_feature(enable = "avx2,fma,f16c")]
+unsafe fn forward_level_with(
+    loads: CornerLoads,
+    level: &LevelInfo,
+    table: &[u32],
+    soa: &Soa,
+    n: usize,
+    out: &mut [f32],
+    stride: usize,
+) {
+    // SAFETY: forwarded from the caller.
+    unsafe {
+        match loads {
+            CornerLoads::Gather => forward_level_loads::<false>(level, table, soa, n, out, stride),
+            CornerLoads::Scalar => forward_level_loads::<true>(level, table, soa, n, out, stride),
+        }
+    }
+}
+
+/// The forward with `SCALAR` corner loads ([`load8`]).
+///
+/// # Safety
+/// As [`forward_level_unchecked`].
+#[target_feature(enable = "avx2,fma,f16c")]
+unsafe fn forward_level_loads<const SCALAR: bool>(
     level: &LevelInfo,
     table: &[u32],
     soa: &Soa,
@@ -113,13 +185,13 @@ unsafe fn forward_level_unchecked(
     let mut i = 0;
     while i < n {
         // SAFETY: i + 8 <= CHUNK (the SoA is padded to 8); every index is < level.size
-        // (clamped cell, dense extent or hash mask), so the gathers read inside `table`.
+        // (clamped cell, dense extent or hash mask), so the loads read inside `table`.
         unsafe {
             let (idx, w) = corners8(level, soa, i);
             let mut acc_lo = _mm256_setzero_ps();
             let mut acc_hi = _mm256_setzero_ps();
             for c in 0..8 {
-                let g = load8(base, idx[c]);
+                let g = load8::<SCALAR>(base, idx[c]);
                 let lo = _mm256_cvtph_ps(_mm256_castsi256_si128(g));
                 let hi = _mm256_cvtph_ps(_mm256_extracti128_si256::<1>(g));
                 acc_lo = _mm256_fmadd_ps(lo, _mm256_permutevar8x32_ps(w[c], dup_lo), acc_lo);
@@ -187,3 +259,43 @@ unsafe fn backward_level_unchecked(
 safe_entry!(Avx2, forward_level => forward_level_unchecked(level: &LevelInfo, table: &[u32], soa: &Soa, n: usize, out: &mut [f32], stride: usize));
 
 safe_entry!(Avx2, backward_level => backward_level_unchecked(level: &LevelInfo, grads: &mut [f32], soa: &Soa, n: usize, d: &[f32], stride: usize));
+
+#[cfg(test)]
+mod tests {
+    use super::super::{scalar, HashGrid, HashGridConfig, HashGridParams, Soa, CHUNK};
+    use super::*;
+    use crate::rng::Rng;
+
+    /// Both corner loads give the same bits, within rounding of the scalar kernel (whose
+    /// mul + add the AVX2 kernel fuses), on every level, dense and hashed, with points outside
+    /// the unit cube and a partial last group of 8.
+    #[test]
+    fn both_corner_loads_give_the_same_bits() {
+        if !(is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma") && is_x86_feature_detected!("f16c")) {
+            return;
+        }
+        let grid = HashGrid::new(HashGridConfig { log2_table_size: 12, ..Default::default() });
+        let mut rng = Rng::new(3);
+        let mut params = HashGridParams::init(&grid, &mut rng);
+        params.master.iter_mut().for_each(|p| *p = rng.uniform(-1.0, 1.0));
+        params.sync_mirror();
+        let n = CHUNK - 3;
+        let pos: Vec<[f32; 3]> = (0..n).map(|_| std::array::from_fn(|_| rng.uniform(-0.1, 1.1))).collect();
+        let mut soa = Soa::default();
+        soa.fill(&pos);
+        for level in grid.levels() {
+            let table = &params.table[level.offset..level.offset + level.size];
+            let mut want = vec![0f32; 2 * n];
+            scalar::forward_level(level, table, &soa, n, &mut want, 2);
+            let mut got = [vec![0f32; 2 * n], vec![0f32; 2 * n]];
+            for (loads, got) in [CornerLoads::Gather, CornerLoads::Scalar].into_iter().zip(&mut got) {
+                // SAFETY: AVX2, FMA and F16C checked above; the table is the level's.
+                unsafe { forward_level_with(loads, level, table, &soa, n, got, 2) };
+                let close = got.iter().zip(&want).all(|(a, b)| (a - b).abs() <= 2e-6);
+                assert!(close, "{loads:?} on level {level:?} is not the scalar kernel's encoding");
+            }
+            let same = got[0].iter().zip(&got[1]).all(|(a, b)| a.to_bits() == b.to_bits());
+            assert!(same, "the two corner loads differ on level {level:?}");
+        }
+    }
+}
