@@ -73,23 +73,28 @@ pub enum CornerLoads {
     /// One `vpgatherdd`: executed in hardware on Intel cores (a 16-lane gather in 3.2–3.8 ns
     /// on an L1-resident table, BENCHMARKS.md's Xeon notes).
     Gather,
-    /// Eight scalar loads: AMD Zen microcodes `vpgatherdd`; on a Zen 3 guest the scalar loads
-    /// made threshold-depth views faster with the same bits (docs/DECISIONS.md, "The hash
-    /// grid's corner loads on AVX2").
+    /// Eight scalar loads: AMD Zen microcodes `vpgatherdd`, and Intel's Gather Data Sampling
+    /// ("Downfall") microcode slows it on the Intel cores it mitigates; on a Zen 3 guest the
+    /// scalar loads made threshold-depth views faster with the same bits (docs/DECISIONS.md,
+    /// "The hash grid's corner loads on AVX2").
     Scalar,
 }
 
 impl CornerLoads {
-    /// The host's: [`CornerLoads::Scalar`] on AMD (and Hygon) CPUs, else
-    /// [`CornerLoads::Gather`]. Read once per process.
+    /// The host's: [`CornerLoads::Scalar`] on AMD (and Hygon) CPUs and where Linux reports the
+    /// Gather Data Sampling mitigation active, else [`CornerLoads::Gather`]. Read once per
+    /// process.
     pub fn detect() -> CornerLoads {
         static LOADS: std::sync::OnceLock<CornerLoads> = std::sync::OnceLock::new();
         *LOADS.get_or_init(|| {
             // Leaf 0: the vendor string (every x86_64 CPU has it).
             let id = __cpuid(0);
             let vendor: Vec<u8> = [id.ebx, id.edx, id.ecx].iter().flat_map(|r| r.to_le_bytes()).collect();
+            let gds = std::fs::read_to_string("/sys/devices/system/cpu/vulnerabilities/gather_data_sampling");
+            let mitigated = gds.is_ok_and(|s| s.starts_with("Mitigation"));
             match &vendor[..] {
                 b"AuthenticAMD" | b"HygonGenuine" => CornerLoads::Scalar,
+                _ if mitigated => CornerLoads::Scalar,
                 _ => CornerLoads::Gather,
             }
         })
