@@ -143,45 +143,28 @@ unsafe fn forward_level_unchecked(
     stride: usize,
 ) {
     // SAFETY: forwarded from the caller.
-    unsafe { forward_level_with(CornerLoads::detect(), level, table, soa, n, out, stride) }
-}
-
-/// [`forward_level_unchecked`] with the corner loads given.
-///
-/// # Safety
-/// As [`forward_level_unchecked`].
-#[target_feature(enable = "avx2,fma,f16c")]
-unsafe fn forward_level_with(
-    loads: CornerLoads,
-    level: &LevelInfo,
-    table: &[u32],
-    soa: &Soa,
-    n: usize,
-    out: &mut [f32],
-    stride: usize,
-) {
-    // SAFETY: forwarded from the caller.
     unsafe {
-        match loads {
-            CornerLoads::Gather => forward_level_loads::<false>(level, table, soa, n, out, stride),
-            CornerLoads::Scalar => forward_level_loads::<true>(level, table, soa, n, out, stride),
+        match CornerLoads::detect() {
+            CornerLoads::Gather => forward_with::<false>(level, table, soa, n, out, stride),
+            CornerLoads::Scalar => forward_with::<true>(level, table, soa, n, out, stride),
         }
     }
 }
 
-/// The forward with `SCALAR` corner loads ([`load8`]).
+/// [`forward_level_unchecked`] with `SCALAR` corner loads ([`load8`]).
 ///
 /// # Safety
 /// As [`forward_level_unchecked`].
 #[target_feature(enable = "avx2,fma,f16c")]
-unsafe fn forward_level_loads<const SCALAR: bool>(
-    level: &LevelInfo,
-    table: &[u32],
+unsafe fn forward_with<const SCALAR: bool>(
+    lv: &LevelInfo,
+    t: &[u32],
     soa: &Soa,
     n: usize,
     out: &mut [f32],
     stride: usize,
 ) {
+    let (level, table) = (lv, t);
     assert!(table.len() >= level.size, "hash grid: level table too short");
     let dup_lo = _mm256_setr_epi32(0, 0, 1, 1, 2, 2, 3, 3);
     let dup_hi = _mm256_setr_epi32(4, 4, 5, 5, 6, 6, 7, 7);
@@ -293,11 +276,16 @@ mod tests {
             let mut want = vec![0f32; 2 * n];
             scalar::forward_level(level, table, &soa, n, &mut want, 2);
             let mut got = [vec![0f32; 2 * n], vec![0f32; 2 * n]];
-            for (loads, got) in [CornerLoads::Gather, CornerLoads::Scalar].into_iter().zip(&mut got) {
+            for (scalar, got) in [false, true].into_iter().zip(&mut got) {
                 // SAFETY: AVX2, FMA and F16C checked above; the table is the level's.
-                unsafe { forward_level_with(loads, level, table, &soa, n, got, 2) };
+                unsafe {
+                    match scalar {
+                        false => forward_with::<false>(level, table, &soa, n, got, 2),
+                        true => forward_with::<true>(level, table, &soa, n, got, 2),
+                    }
+                }
                 let close = got.iter().zip(&want).all(|(a, b)| (a - b).abs() <= 2e-6);
-                assert!(close, "{loads:?} on level {level:?} is not the scalar kernel's encoding");
+                assert!(close, "scalar loads {scalar} on level {level:?}: not the scalar kernel's encoding");
             }
             let same = got[0].iter().zip(&got[1]).all(|(a, b)| a.to_bits() == b.to_bits());
             assert!(same, "the two corner loads differ on level {level:?}");
