@@ -70,8 +70,8 @@ unsafe fn corners8(level: &LevelInfo, soa: &Soa, i: usize) -> ([__m256i; 8], [__
 /// same bits; only the speed differs, by CPU vendor.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum CornerLoads {
-    /// One `vpgatherdd`: executed in hardware on Intel cores (a 16-lane gather in 3.2–3.8 ns
-    /// on an L1-resident table, BENCHMARKS.md's Xeon notes).
+    /// One `vpgatherdd`: executed in hardware on Intel cores (the AVX-512 level's 16-lane
+    /// gather took 3.2–3.8 ns on an L1-resident table, BENCHMARKS.md's Xeon notes).
     Gather,
     /// Eight scalar loads: AMD Zen microcodes `vpgatherdd`, and Intel's Gather Data Sampling
     /// ("Downfall") microcode slows it on the Intel cores it mitigates; on a Zen 3 guest the
@@ -87,19 +87,25 @@ impl CornerLoads {
     pub fn detect() -> CornerLoads {
         static LOADS: std::sync::OnceLock<CornerLoads> = std::sync::OnceLock::new();
         *LOADS.get_or_init(|| {
-            // Leaf 0: the vendor string (every x86_64 CPU has it).
+            // Leaf 0: the vendor string, in EBX, EDX, ECX (every x86_64 CPU has it).
             let id = __cpuid(0);
-            let vendor: Vec<u8> = [id.ebx, id.edx, id.ecx].iter().flat_map(|r| r.to_le_bytes()).collect();
-            let gds = std::fs::read_to_string("/sys/devices/system/cpu/vulnerabilities/gather_data_sampling");
-            let mitigated = gds.is_ok_and(|s| s.starts_with("Mitigation"));
-            match &vendor[..] {
-                b"AuthenticAMD" | b"HygonGenuine" => CornerLoads::Scalar,
-                _ if mitigated => CornerLoads::Scalar,
-                _ => CornerLoads::Gather,
+            let amd = [id.ebx, id.edx, id.ecx] == AMD || [id.ebx, id.edx, id.ecx] == HYGON;
+            let gds_mitigated = || {
+                std::fs::read_to_string("/sys/devices/system/cpu/vulnerabilities/gather_data_sampling")
+                    .is_ok_and(|s| s.starts_with("Mitigation"))
+            };
+            if amd || gds_mitigated() {
+                CornerLoads::Scalar
+            } else {
+                CornerLoads::Gather
             }
         })
     }
 }
+
+/// `cpuid` leaf 0's vendor words (EBX, EDX, ECX) of "AuthenticAMD" and "HygonGenuine".
+const AMD: [u32; 3] = [u32::from_le_bytes(*b"Auth"), u32::from_le_bytes(*b"enti"), u32::from_le_bytes(*b"cAMD")];
+const HYGON: [u32; 3] = [u32::from_le_bytes(*b"Hygo"), u32::from_le_bytes(*b"nGen"), u32::from_le_bytes(*b"uine")];
 
 /// The 32-bit words `base[idx[0..8]]` as one vector, fetched as `SCALAR` says
 /// ([`CornerLoads`]).
@@ -157,14 +163,13 @@ unsafe fn forward_level_unchecked(
 /// As [`forward_level_unchecked`].
 #[target_feature(enable = "avx2,fma,f16c")]
 unsafe fn forward_with<const SCALAR: bool>(
-    lv: &LevelInfo,
-    t: &[u32],
+    level: &LevelInfo,
+    table: &[u32],
     soa: &Soa,
     n: usize,
     out: &mut [f32],
     stride: usize,
 ) {
-    let (level, table) = (lv, t);
     assert!(table.len() >= level.size, "hash grid: level table too short");
     let dup_lo = _mm256_setr_epi32(0, 0, 1, 1, 2, 2, 3, 3);
     let dup_hi = _mm256_setr_epi32(4, 4, 5, 5, 6, 6, 7, 7);
@@ -289,6 +294,23 @@ mod tests {
             }
             let same = got[0].iter().zip(&got[1]).all(|(a, b)| a.to_bits() == b.to_bits());
             assert!(same, "the two corner loads differ on level {level:?}");
+        }
+    }
+
+    /// The vendor words decode as the kernel's `/proc/cpuinfo` names them: AMD hosts take the
+    /// scalar loads; Intel hosts without the Gather Data Sampling mitigation keep the gather.
+    #[test]
+    fn corner_loads_follow_the_cpu_vendor() {
+        let Ok(info) = std::fs::read_to_string("/proc/cpuinfo") else { return };
+        let vendor =
+            info.lines().find_map(|l| l.strip_prefix("vendor_id")).map(|v| v.trim_start_matches([' ', '\t', ':']));
+        let gds = std::fs::read_to_string("/sys/devices/system/cpu/vulnerabilities/gather_data_sampling");
+        match vendor {
+            Some("AuthenticAMD" | "HygonGenuine") => assert_eq!(CornerLoads::detect(), CornerLoads::Scalar),
+            Some("GenuineIntel") if !gds.is_ok_and(|s| s.starts_with("Mitigation")) => {
+                assert_eq!(CornerLoads::detect(), CornerLoads::Gather)
+            }
+            _ => {}
         }
     }
 }
