@@ -1,7 +1,8 @@
 //! Whole-view rendering: the segmented, early-stopping [`ViewRenderer`] gives what marching
 //! each ray in one go and compositing it whole gives (colour, expected and threshold z-depth),
 //! and the depth-only path gives the same threshold depth as the full one, for any number of
-//! samples per round.
+//! samples per round; an earlier compositing stop moves colours by less than the stop and
+//! leaves threshold depth alone.
 
 use glam::Vec3;
 use residual_nerf::data::synth;
@@ -77,6 +78,25 @@ fn segmented_rendering_equals_whole_ray_compositing() {
                 other.depth(isa, &(&nerf).into(), k, &v.pose, m, &mut oz);
                 let bits = |z: &[f32]| z.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
                 assert_eq!(bits(&oz), bits(&dz), "depth rounds of {round} samples");
+            }
+            // An earlier stop moves every colour channel by less than the stop and leaves the
+            // threshold depth's bits; at the default it is the same render.
+            for stop in [1e-4, 0.01, 0.1] {
+                let mut early = ViewRenderer::new();
+                early.set_early_stop(stop);
+                let (mut erg, mut etz) = (vec![[0.0; 3]; n], vec![0.0; n]);
+                let out = FullOutputs { rgb: &mut erg, expected_z: &mut [], threshold_z: &mut etz, beta: &mut [] };
+                early.full(isa, &(&nerf).into(), k, &v.pose, cfg.background, m, out);
+                let bits = |z: &[f32]| z.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&etz), bits(&tz), "threshold depth with the stop at {stop}");
+                let moved = erg.iter().zip(&rgb).map(|(a, b)| (0..3).map(|c| (a[c] - b[c]).abs()).fold(0f32, f32::max));
+                let moved: Vec<f32> = moved.collect();
+                let most = moved.iter().fold(0f32, |a, &b| a.max(b));
+                assert!(most < stop, "stop {stop}: a colour moved by {most}");
+                match stop == 1e-4 {
+                    true => assert_eq!(bits(erg.as_flattened()), bits(rgb.as_flattened()), "the default stop"),
+                    false => assert!(moved.iter().any(|&d| d > 0.0), "stop {stop} changed no colour"),
+                }
             }
             let mut hits = 0;
             for p in 0..n {

@@ -17,7 +17,7 @@
 //! marching visits exactly the samples of one-shot marching, so results equal compositing the
 //! whole ray (tested).
 
-use super::composite::{is_opaque, transmitted, RayAccumulator};
+use super::composite::{transmitted, RayAccumulator, EARLY_STOP_TRANSMITTANCE};
 use super::depth::DensityThreshold;
 use super::{pixel_ray, Intrinsics, OccupancyGrid, Pose, Ray, RaySpan};
 use crate::field::model::Model;
@@ -147,11 +147,14 @@ pub struct ViewRenderer<M: Model = NerfField> {
     workers: Vec<Worker<M>>,
     /// Samples per ray per round of the depth-only path ([`ViewRenderer::set_depth_round`]).
     depth_round: usize,
+    /// Transmittance below which a ray of the full path stops compositing
+    /// ([`ViewRenderer::set_early_stop`]).
+    stop: f32,
 }
 
 impl<M: Model> Default for ViewRenderer<M> {
     fn default() -> Self {
-        ViewRenderer { workers: Vec::new(), depth_round: DEPTH_SEGMENT }
+        ViewRenderer { workers: Vec::new(), depth_round: DEPTH_SEGMENT, stop: EARLY_STOP_TRANSMITTANCE }
     }
 }
 
@@ -188,6 +191,16 @@ impl<M: Model> ViewRenderer<M> {
     /// where the last stopped, so the depths are the same bits for any value (tested).
     pub fn set_depth_round(&mut self, samples: usize) {
         self.depth_round = samples.max(1);
+    }
+
+    /// Transmittance below which a ray of [`ViewRenderer::full`] stops compositing (default
+    /// [`EARLY_STOP_TRANSMITTANCE`], 1e-4; clamped to `[1e-4, 0.5]`). A ray stopped at
+    /// transmittance `T` takes the background colour for the light it would still gather
+    /// (at most `T` of its colour), so every colour channel moves by less than `stop`;
+    /// threshold depth is the same bits (tested). For renders read against a tolerance far
+    /// above it (the background prior's change maps).
+    pub fn set_early_stop(&mut self, stop: f32) {
+        self.stop = stop.clamp(EARLY_STOP_TRANSMITTANCE, 0.5);
     }
 
     /// Threshold z-depth of every pixel into `z` (`width × height`), NaN for holes.
@@ -244,7 +257,7 @@ impl<M: Model> ViewRenderer<M> {
     ) {
         let n = (k.width * k.height) as usize;
         let tile = (TILE_PIXELS / k.width as usize).max(1) * k.width as usize;
-        let first = if full { FIRST_SEGMENT } else { self.depth_round };
+        let (first, stop) = (if full { FIRST_SEGMENT } else { self.depth_round }, self.stop);
         let threads = rayon::current_num_threads().clamp(1, n.div_ceil(tile).max(1));
         if self.workers.len() < threads {
             self.workers.resize_with(threads, Worker::default);
@@ -260,7 +273,7 @@ impl<M: Model> ViewRenderer<M> {
         };
         self.workers[..threads].par_iter_mut().for_each(|w| {
             while let Some((pixels, out)) = next_tile() {
-                w.run_tile(isa, scene, k, pose, pixels, m, full, first, background, out);
+                w.run_tile(isa, scene, k, pose, pixels, m, full, first, stop, background, out);
             }
         });
     }
@@ -280,6 +293,7 @@ impl<M: Model> Worker<M> {
         m: DensityThreshold,
         full: bool,
         first: usize,
+        stop: f32,
         background: [f32; 3],
         out: FullOutputs<'_>,
     ) {
@@ -328,7 +342,7 @@ impl<M: Model> Worker<M> {
             let n = self.t.len();
             self.sigma.resize(n, 0.0);
             if full {
-                self.composite_round(isa, scene, min_sigma);
+                self.composite_round(isa, scene, min_sigma, stop);
             } else {
                 // On this thread, a chunk at a time, density networks' first outputs only.
                 for (p, s) in self.positions.chunks(CHUNK).zip(self.sigma.chunks_mut(CHUNK)) {
@@ -346,7 +360,7 @@ impl<M: Model> Worker<M> {
                     let j = (start as usize..(start + count) as usize).find(|&j| sigma[j] >= min_sigma);
                     s.hit = j.map(|j| t[j]);
                 }
-                let finished = if full { is_opaque(s.transmittance) && s.hit.is_some() } else { s.hit.is_some() };
+                let finished = if full { s.transmittance < stop && s.hit.is_some() } else { s.hit.is_some() };
                 let exhausted = s.next >= s.span.steps || s.taken >= max_samples || count == 0;
                 !(finished || exhausted)
             });
@@ -382,7 +396,7 @@ impl<M: Model> Worker<M> {
     /// samples a segment marched past that point cost their density alone. The opaque point
     /// is found from σ alone (each ray's `transmittance` multiplies the factors the accumulator
     /// then takes), so the composited samples are those of compositing the whole ray.
-    fn composite_round(&mut self, isa: Isa, scene: &Scene<'_, M>, min_sigma: f32) {
+    fn composite_round(&mut self, isa: Isa, scene: &Scene<'_, M>, min_sigma: f32, stop: f32) {
         let n = self.t.len();
         // The round's samples, ray after ray: the ray (index into `states`) of each.
         let mut owner =
@@ -410,7 +424,8 @@ impl<M: Model> Worker<M> {
                 if s.hit.is_none() && sigma >= min_sigma {
                     s.hit = Some(self.t[j]);
                 }
-                if !is_opaque(s.transmittance) {
+                let opaque = s.transmittance < stop;
+                if !opaque {
                     let share = transmitted(sigma, self.delta[j]);
                     s.transmittance *= share;
                     self.keep.push((j - from) as u32);

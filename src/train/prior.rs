@@ -52,6 +52,13 @@ use crate::train::trainer::{Focus, TrainConfig};
 use glam::Vec3;
 use rayon::prelude::*;
 
+/// Transmittance at which the prior's colour renders of the background (registration and
+/// change maps, for scene views without a background image at their pose) stop compositing
+/// ([`ViewRenderer::set_early_stop`]): their colours move by less than this, a fifth of the
+/// change maps' tolerance, and their threshold depth not at all (docs/DECISIONS.md, "The
+/// background at other poses").
+pub const PRIOR_EARLY_STOP: f32 = 0.01;
+
 /// Two poses within this (rotation entries and translation, scene units) are the same pose.
 pub const SAME_POSE: f32 = 1e-4;
 
@@ -305,6 +312,7 @@ fn register_views(
     m: DensityThreshold,
 ) -> (Vec<Option<Registration>>, Vec<Option<RenderedView>>) {
     let mut renderer = ViewRenderer::new();
+    renderer.set_early_stop(PRIOR_EARLY_STOP);
     let scene = Scene::from(background);
     let each = views.iter().zip(matches);
     each.map(|(v, matched)| match matched {
@@ -345,6 +353,7 @@ fn background_at(
     solid_fraction: f32,
 ) -> Vec<(Vec<[f32; 3]>, Vec<f32>)> {
     let mut renderer = ViewRenderer::new();
+    renderer.set_early_stop(PRIOR_EARLY_STOP);
     let scene = Scene::from(background);
     // The thinned grid only when some view is rendered for its depth alone.
     let grid = &background.occupancy;
