@@ -194,13 +194,13 @@ impl<M: Model> ViewRenderer<M> {
     }
 
     /// Transmittance below which a ray of [`ViewRenderer::full`] stops compositing (default
-    /// [`EARLY_STOP_TRANSMITTANCE`], 1e-4; clamped to `[1e-4, 0.5]`). A ray stopped at
-    /// transmittance `T` takes the background colour for the light it would still gather
-    /// (at most `T` of its colour), so every colour channel moves by less than `stop`;
-    /// threshold depth is the same bits (tested). For renders read against a tolerance far
-    /// above it (the background prior's change maps).
+    /// [`EARLY_STOP_TRANSMITTANCE`], 1e-4; clamped to `[1e-4, 0.5]`, NaN taken as the
+    /// default). A ray stopped at transmittance `T` takes the background colour for the light
+    /// it would still gather (at most `T` of its colour), so every colour channel moves by
+    /// less than `stop`; threshold depth is the same bits (tested). For renders read against a
+    /// tolerance far above it (the background prior's change maps).
     pub fn set_early_stop(&mut self, stop: f32) {
-        self.stop = stop.clamp(EARLY_STOP_TRANSMITTANCE, 0.5);
+        self.stop = if stop.is_nan() { EARLY_STOP_TRANSMITTANCE } else { stop.clamp(EARLY_STOP_TRANSMITTANCE, 0.5) };
     }
 
     /// Threshold z-depth of every pixel into `z` (`width × height`), NaN for holes.
