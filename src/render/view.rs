@@ -257,7 +257,8 @@ impl<M: Model> ViewRenderer<M> {
     ) {
         let n = (k.width * k.height) as usize;
         let tile = (TILE_PIXELS / k.width as usize).max(1) * k.width as usize;
-        let (first, stop) = (if full { FIRST_SEGMENT } else { self.depth_round }, self.stop);
+        let first = if full { FIRST_SEGMENT } else { self.depth_round };
+        let stop = self.stop;
         let threads = rayon::current_num_threads().clamp(1, n.div_ceil(tile).max(1));
         if self.workers.len() < threads {
             self.workers.resize_with(threads, Worker::default);
