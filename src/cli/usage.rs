@@ -56,7 +56,8 @@ commands:
          (--m-sweep: also score the final models at these σ thresholds, default 3,10,20,40;
          --beta: weights of the background-aware methods' β penalty and entropy;
          --beta-margin: pixels around the changed ones the β penalty spares, default 2;
-         --region-floor: lift the warm-started residual's raw density in the change region to S;
+         --region-floor: lift the warm-started residual's raw density in the change region to at
+         least S before training (σ = e^S per metre), default off;
          --focus-share: share of each step's rays drawn from changed pixels, default 0.5;
          --region-vote: a cell is in the change region when at least S of all views see it and
          at least V of those see a change there, default 0.5,0.25;

@@ -7,8 +7,19 @@
 //! the residual's raw density inside the region to at least a floor `s₀` — `s_res(x) ≈
 //! max(s_bg(x), s₀)` — by a short regression on points drawn uniformly in the region's cells,
 //! so the residual starts "unsure" in the region's air, as a fresh NeRF does, and keeps the
-//! background's surfaces. With the activated mix `σ = (1−β)σ_bg + βσ_res` the mixed field then
-//! starts at the background plus at most `β·e^{s₀}` of fog inside the region.
+//! background's surfaces. Off by default ([`crate::train::prior::DEFAULT_LIFT`]); `--region-floor
+//! 0` turns it on at [`LiftConfig::DEFAULT`].
+//!
+//! Under the raw mix `σ = exp((1−β)s_bg + βs_res)` (the default) a plain warm start
+//! (`s_res = s_bg`) gives `∂σ/∂β = σ·(s_res − s_bg) = 0` and `∂σ/∂s_res = βσ`, vanishing in
+//! carved air: the Mixnet learns nothing from density there, and the residual little. After the
+//! lift `s_res − s_bg > 0` in the region's air, so β has a gradient wherever the images ask for
+//! density. The price is the exact start: with the Mixnet's β = ½ at step 0 the region's air
+//! below `s₀` starts at `σ = e^{(s_bg+s₀)/2} ≤ e^{s₀}` (1 per metre at the default, a tenth of
+//! the threshold m), and its surfaces within the fit's error of the background's; outside the
+//! region the field is still the background bit for bit. With the activated mix
+//! `σ = (1−β)σ_bg + βσ_res` the mixed field starts at the background plus at most `β·e^{s₀}` of
+//! fog inside the region.
 
 use crate::field::model::Model;
 use crate::field::{Nerf, NerfField, NerfParams};
@@ -32,9 +43,14 @@ pub struct LiftConfig {
     pub lr: f32,
 }
 
+impl LiftConfig {
+    /// Floor 0 (σ = 1 per scene unit), 100 steps of 4096 points at 1e-2 (`--region-floor 0`).
+    pub const DEFAULT: LiftConfig = LiftConfig { floor: 0.0, steps: 100, batch: 4096, lr: 1e-2 };
+}
+
 impl Default for LiftConfig {
     fn default() -> Self {
-        LiftConfig { floor: 0.0, steps: 100, batch: 4096, lr: 1e-2 }
+        Self::DEFAULT
     }
 }
 
