@@ -15,7 +15,7 @@
 //! carved air: the Mixnet learns nothing from density there, and the residual little. After the
 //! lift `s_res − s_bg > 0` in the region's air, so β has a gradient wherever the images ask for
 //! density. The price is the exact start: with the Mixnet's β = ½ at step 0 the region's air
-//! below `s₀` starts at `σ = e^{(s_bg+s₀)/2} ≤ e^{s₀}` (1 per metre at the default, a tenth of
+//! below `s₀` starts at `σ = e^{(s_bg+s₀)/2} ≤ e^{s₀}` (1 per metre at `s₀ = 0`, a tenth of
 //! the threshold m), and its surfaces within the fit's error of the background's; outside the
 //! region the field is still the background bit for bit. With the activated mix
 //! `σ = (1−β)σ_bg + βσ_res` the mixed field starts at the background plus at most `β·e^{s₀}` of

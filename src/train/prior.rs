@@ -124,7 +124,8 @@ pub const BETA_DILATE_PX: u32 = 2;
 
 /// Default density floor: none. At [`LiftConfig::DEFAULT`] (`--region-floor 0`) the dev scenes
 /// gain (object MAE −11%, near-crop RMSE −6% over three seeds) but scene poses off like a robot
-/// arm's lose the glass (`tests/capture_e2e.rs`): docs/DECISIONS.md, "The density floor".
+/// arm's lose the glass (`tests/capture_e2e.rs`): docs/DECISIONS.md, "The density floor with the raw
+/// mix".
 pub const DEFAULT_LIFT: Option<LiftConfig> = None;
 
 /// Default β regularisers (measured on the dev scenes: docs/DECISIONS.md).
