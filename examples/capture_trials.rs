@@ -32,6 +32,8 @@
 //! scene, learning a gain per image with the field: `rnerf train --image-gains on`);
 //! `exposure-jitter-gains-background` (gains learned by the background's run only);
 //! `none-gains` (one exposure, every run learning gains: what they cost where nothing moves).
+//! Any trial with `-floor` appended runs the same with the residual's density floor on
+//! (`--region-floor 0`, `train::lift`; docs/DECISIONS.md, "The density floor with the raw mix").
 //! SEED (default 0) seeds every run's initialisation and sampling, not the captures.
 
 use residual_nerf::app::{demo_config, train_background};
@@ -39,6 +41,7 @@ use residual_nerf::compare::{run_scene, EvalSet, Method};
 use residual_nerf::data::workspace::{self, Capture, Glass};
 use residual_nerf::geometry::Distortion;
 use residual_nerf::simd::Isa;
+use residual_nerf::train::lift::LiftConfig;
 use residual_nerf::train::register::registration_passes;
 use residual_nerf::train::trainer::GAIN_PRIOR;
 
@@ -91,7 +94,12 @@ fn main() -> Result<(), String> {
         "| trial | method | object MAE (m) | holes | see-through | floaters | crop w/o object MAE (m) | PSNR (dB) |"
     );
     println!("|---|---|---|---|---|---|---|---|");
-    for name in trials {
+    for label in trials {
+        // `TRIAL-floor`: the trial with the residual's density floor on (`--region-floor 0`).
+        let (name, floor) = match label.strip_suffix("-floor") {
+            Some(name) => (name, true),
+            None => (label, false),
+        };
         let (bg_capture, scene_capture) = trial(name)?;
         let mut bg = workspace::workspace_capture(size, 32, 0.0, Glass::None, &bg_capture);
         let mut scene = workspace::workspace_capture(size, 32, 0.0, Glass::Sphere, &scene_capture);
@@ -132,11 +140,14 @@ fn main() -> Result<(), String> {
         let methods = [Method::Dex, Method::RESIDUAL];
         cfg.prior.exposure = name != "exposure-uncorrected";
         cfg.prior.register = !name.ends_with("-unregistered");
-        let r = run_scene(isa, name, &background, &bg.views, &scene.views, &test, &methods, &cfg, &mut |_, _| {})?;
+        if floor {
+            cfg.prior.lift = Some(LiftConfig::DEFAULT);
+        }
+        let r = run_scene(isa, label, &background, &bg.views, &scene.views, &test, &methods, &cfg, &mut |_, _| {})?;
         for m in &r.methods {
             let (o, rest) = (&m.threshold.object, &m.threshold.rest);
             println!(
-                "| {name} | {} | {:.4} | {:.1}% | {:.1}% | {:.1}% | {:.4} | {:.2} |",
+                "| {label} | {} | {:.4} | {:.1}% | {:.1}% | {:.1}% | {:.4} | {:.2} |",
                 m.method.name(),
                 o.mae(),
                 100.0 * o.hole_rate(),

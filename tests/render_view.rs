@@ -2,17 +2,19 @@
 //! each ray in one go and compositing it whole gives (colour, expected and threshold z-depth),
 //! and the depth-only path gives the same threshold depth as the full one, for any number of
 //! samples per round; an earlier compositing stop moves colours by less than the stop and
-//! leaves threshold depth alone.
+//! leaves threshold depth alone, and filled with the ray's own colour it renders a field of
+//! one colour exactly.
 
 use glam::Vec3;
 use residual_nerf::data::synth;
 use residual_nerf::encoding::HashGridConfig;
-use residual_nerf::field::NerfConfig;
+use residual_nerf::field::{Nerf, NerfConfig, NerfField};
 use residual_nerf::mlp::Activation;
 use residual_nerf::render::{
     composite_ray, pixel_ray, threshold_depth, DensityThreshold, FullOutputs, Intrinsics, OccupancyConfig,
-    OccupancyGrid, PackedSamples, Pose, Ray, ViewRenderer,
+    OccupancyGrid, PackedSamples, Pose, Ray, StopFill, ViewRenderer,
 };
+use residual_nerf::rng::Rng;
 use residual_nerf::simd::Isa;
 use residual_nerf::train::trainer::{train_nerf, TrainConfig};
 
@@ -83,7 +85,7 @@ fn segmented_rendering_equals_whole_ray_compositing() {
             // threshold depth's bits; at the default it is the same render.
             for stop in [1e-4, 0.01, 0.1] {
                 let mut early = ViewRenderer::new();
-                early.set_early_stop(stop);
+                early.set_early_stop(stop, StopFill::Background);
                 let (mut erg, mut etz) = (vec![[0.0; 3]; n], vec![0.0; n]);
                 let out = FullOutputs { rgb: &mut erg, expected_z: &mut [], threshold_z: &mut etz, beta: &mut [] };
                 early.full(isa, &(&nerf).into(), k, &v.pose, cfg.background, m, out);
@@ -201,4 +203,62 @@ fn a_residual_models_full_render_equals_whole_ray_compositing() {
     }
     assert!(some_beta, "the model should mix somewhere");
     assert!(hits > n / 8, "the model should have solid surfaces ({hits} of {n} pixels hit)");
+}
+
+/// An early stop filled with the ray's own colour ([`StopFill::RayColour`]): on a field of one
+/// colour (the colour network's weights zero, so every sample is sigmoid(0) = ½) every ray it
+/// stops renders ½ whatever the stop, where the background fill pulls it towards the
+/// background (pure red here) by up to the stop; rays it does not stop render as with the
+/// background fill; threshold depth keeps its bits.
+#[test]
+fn the_rays_own_colour_fills_an_early_stop_exactly_on_a_field_of_one_colour() {
+    let isa = Isa::detect();
+    let scene = synth::tabletop(16, 1, 0.0);
+    let grid = HashGridConfig { levels: 6, log2_table_size: 10, base_resolution: 4, finest_resolution: 32 };
+    let field = NerfField::new(NerfConfig { grid, aabb: scene.aabb });
+    let mut rng = Rng::new(5);
+    let mut params = field.init_params(&mut rng);
+    params.grid.master.iter_mut().for_each(|v| *v = rng.uniform(-4.0, 4.0));
+    params.grid.sync_mirror();
+    // Dense enough that most rays turn opaque inside the box.
+    params.density.weights_mut().iter_mut().for_each(|w| *w *= 3.0);
+    params.density.sync();
+    params.colour.weights_mut().fill(0.0);
+    params.colour.sync();
+    let occupancy = OccupancyGrid::new(
+        scene.aabb,
+        OccupancyConfig { resolution: 16, steps_per_diagonal: 128, max_samples: 400, ..Default::default() },
+    );
+    let nerf = Nerf { field, params, occupancy };
+    let red = [1.0, 0.0, 0.0];
+    let m = DensityThreshold::Sigma(3.0);
+    let v = &scene.views[0];
+    let n = (v.intrinsics.width * v.intrinsics.height) as usize;
+    let render = |stop: f32, fill: StopFill| {
+        let mut r = ViewRenderer::new();
+        r.set_early_stop(stop, fill);
+        let (mut rgb, mut tz) = (vec![[0.0; 3]; n], vec![0.0; n]);
+        let out = FullOutputs { rgb: &mut rgb, expected_z: &mut [], threshold_z: &mut tz, beta: &mut [] };
+        r.full(isa, &(&nerf).into(), &v.intrinsics, &v.pose, red, m, out);
+        (rgb, tz.iter().map(|z| z.to_bits()).collect::<Vec<_>>())
+    };
+    let (_, default_z) = render(1e-4, StopFill::Background);
+    for stop in [0.05, 0.3] {
+        let (own, own_z) = render(stop, StopFill::RayColour);
+        let (bg, bg_z) = render(stop, StopFill::Background);
+        assert_eq!(own_z, default_z, "threshold depth, the ray's colour at {stop}");
+        assert_eq!(bg_z, default_z, "threshold depth, the background at {stop}");
+        let mut stopped = 0;
+        for (p, (o, b)) in own.iter().zip(&bg).enumerate() {
+            let flat = o.iter().all(|&c| (c - 0.5).abs() < 1e-5);
+            if o != b {
+                assert!(flat, "stop {stop}, pixel {p}: {o:?} (the background fill: {b:?})");
+                stopped += 1;
+            } else if !flat {
+                // Not stopped: what the background let through is mixed in either way.
+                assert!(b[0] > b[1], "stop {stop}, pixel {p}: {b:?}");
+            }
+        }
+        assert!(stopped > n / 4, "stop {stop}: only {stopped} of {n} rays stopped early");
+    }
 }

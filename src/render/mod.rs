@@ -15,4 +15,4 @@ pub use composite::{
     composite_ray, composite_ray_backward, weights_from_density, RayAccumulator, RayComposite, EARLY_STOP_TRANSMITTANCE,
 };
 pub use depth::{expected_depth, threshold_depth, DensityThreshold, DepthMethod};
-pub use view::{FullOutputs, RenderedView, ViewRenderer};
+pub use view::{FullOutputs, RenderedView, StopFill, ViewRenderer};

@@ -150,11 +150,33 @@ pub struct ViewRenderer<M: Model = NerfField> {
     /// Transmittance below which a ray of the full path stops compositing
     /// ([`ViewRenderer::set_early_stop`]).
     stop: f32,
+    /// What stands for the light a ray stopped early would still gather.
+    fill: StopFill,
+}
+
+/// What stands for the light a ray of [`ViewRenderer::full`] would still gather after its early
+/// stop ([`ViewRenderer::set_early_stop`]), `T` of its colour at most.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum StopFill {
+    /// The background colour, as for a ray that leaves the scene: every channel within `T` of
+    /// compositing the whole ray.
+    #[default]
+    Background,
+    /// The colour the ray has gathered so far, `C / (1 − T)`: the rest of a thick, leaky surface
+    /// taken to look like its front. Exact when the samples behind the stop share the colour of
+    /// those before it (a surface of one colour), within `T ·` the spread of the ray's colours
+    /// otherwise; for renders read against a tolerance (the background prior's).
+    RayColour,
 }
 
 impl<M: Model> Default for ViewRenderer<M> {
     fn default() -> Self {
-        ViewRenderer { workers: Vec::new(), depth_round: DEPTH_SEGMENT, stop: EARLY_STOP_TRANSMITTANCE }
+        ViewRenderer {
+            workers: Vec::new(),
+            depth_round: DEPTH_SEGMENT,
+            stop: EARLY_STOP_TRANSMITTANCE,
+            fill: StopFill::Background,
+        }
     }
 }
 
@@ -195,12 +217,13 @@ impl<M: Model> ViewRenderer<M> {
 
     /// Transmittance below which a ray of [`ViewRenderer::full`] stops compositing (default
     /// [`EARLY_STOP_TRANSMITTANCE`], 1e-4; clamped to `[1e-4, 0.5]`, NaN taken as the
-    /// default). A ray stopped at transmittance `T` takes the background colour for the light
-    /// it would still gather (at most `T` of its colour), so every colour channel moves by
-    /// less than `stop`; threshold depth is the same bits (tested). For renders read against a
-    /// tolerance far above it (the background prior's change maps).
-    pub fn set_early_stop(&mut self, stop: f32) {
+    /// default). A ray stopped at transmittance `T` takes `fill` for the light it would still
+    /// gather (at most `T` of its colour): with [`StopFill::Background`] every colour channel
+    /// moves by less than `stop`; threshold depth is the same bits with either (tested). For
+    /// renders read against a tolerance far above it (the background prior's change maps).
+    pub fn set_early_stop(&mut self, stop: f32, fill: StopFill) {
         self.stop = if stop.is_nan() { EARLY_STOP_TRANSMITTANCE } else { stop.clamp(EARLY_STOP_TRANSMITTANCE, 0.5) };
+        self.fill = fill;
     }
 
     /// Threshold z-depth of every pixel into `z` (`width × height`), NaN for holes.
@@ -258,7 +281,7 @@ impl<M: Model> ViewRenderer<M> {
         let n = (k.width * k.height) as usize;
         let tile = (TILE_PIXELS / k.width as usize).max(1) * k.width as usize;
         let first = if full { FIRST_SEGMENT } else { self.depth_round };
-        let stop = self.stop;
+        let stop = (self.stop, self.fill);
         let threads = rayon::current_num_threads().clamp(1, n.div_ceil(tile).max(1));
         if self.workers.len() < threads {
             self.workers.resize_with(threads, Worker::default);
@@ -294,7 +317,7 @@ impl<M: Model> Worker<M> {
         m: DensityThreshold,
         full: bool,
         first: usize,
-        stop: f32,
+        (stop, fill): (f32, StopFill),
         background: [f32; 3],
         out: FullOutputs<'_>,
     ) {
@@ -376,7 +399,16 @@ impl<M: Model> Worker<M> {
             if !full {
                 continue;
             }
-            let c = s.acc.finish(background);
+            let c = match fill {
+                // Stopped early: the light still to come looks like the light so far.
+                StopFill::RayColour if s.transmittance < stop => {
+                    let mut c = s.acc.finish([0.0; 3]);
+                    let gathered = 1.0 - c.transmittance;
+                    c.rgb = c.rgb.map(|v| v / gathered);
+                    c
+                }
+                _ => s.acc.finish(background),
+            };
             if !out.rgb.is_empty() {
                 out.rgb[i] = c.rgb;
             }
