@@ -6,6 +6,9 @@
 //! fraction `onboard::SOLID_FRACTION`), this prints
 //! - where rays hit: the marched samples up to and including the hit, per ray, and the samples
 //!   a round length evaluates (what it marches past the hit included);
+//! - what the thinned grid keeps: its occupied cells, those in the upper half of the box (air
+//!   above a table-top scene), and its blocks of `BLOCK`³ cells that hold one (the blocks
+//!   marching crosses in one jump are the others);
 //! - the time of a view per round length, the lengths interleaved frame by frame (REPS rounds
 //!   of all of them) so a noisy host's drift falls on all alike; min and median per view, and
 //!   whether every length gave the first one's depths bit for bit.
@@ -15,8 +18,10 @@
 //! RNERF_CPU_LEVEL=avx2 cargo run --release --example depth_rounds -- bg.safetensors DEV/glass_up 4,2,1 15
 //! ```
 
+use glam::Vec3;
 use residual_nerf::data::dataset::{Dataset, LoadOptions};
 use residual_nerf::field::model::Model;
+use residual_nerf::geometry::occupancy::{OccupancyGrid, BLOCK};
 use residual_nerf::io::{load_model, LoadedModel};
 use residual_nerf::render::view::Scene;
 use residual_nerf::render::{pixel_ray, DepthMethod, Intrinsics, PackedSamples, Pose, ViewRenderer};
@@ -56,6 +61,7 @@ fn run<M: Model>(scene: &Scene<'_, M>, views: &[(Intrinsics, Pose)], lengths: &[
     let m = DepthMethod::default().threshold();
     let grid = scene.occupancy.keep_solid(residual_nerf::onboard::SOLID_FRACTION, m.min_sigma());
     let thinned = Scene { model: scene.model, params: scene.params, occupancy: &grid };
+    print_grid(&grid);
     let mut renderers: Vec<ViewRenderer<M>> = lengths
         .iter()
         .map(|&l| {
@@ -116,4 +122,36 @@ fn run<M: Model>(scene: &Scene<'_, M>, views: &[(Intrinsics, Pose)], lengths: &[
         }
         println!("{line}");
     }
+}
+
+/// The thinned grid's occupied share of cells, of the cells in the box's upper half, and of its
+/// blocks of [`BLOCK`]³ cells.
+fn print_grid(grid: &OccupancyGrid) {
+    let r = grid.config().resolution as usize;
+    let (aabb, cell) = (grid.aabb(), grid.aabb().size() / r as f32);
+    let b = r.div_ceil(BLOCK as usize);
+    let mut blocks = vec![false; b * b * b];
+    let (mut upper, mut upper_set) = (0usize, 0usize);
+    for z in 0..r {
+        for y in 0..r {
+            for x in 0..r {
+                let centre = aabb.min + (Vec3::new(x as f32, y as f32, z as f32) + 0.5) * cell;
+                let set = grid.is_occupied(centre);
+                if 2 * z >= r {
+                    upper += 1;
+                    upper_set += set as usize;
+                }
+                let bl = BLOCK as usize;
+                blocks[x / bl + b * (y / bl + b * (z / bl))] |= set;
+            }
+        }
+    }
+    let held = blocks.iter().filter(|&&h| h).count();
+    println!(
+        "thinned grid: {:.1}% of the cells occupied, {:.1}% of those in the box's upper half, {:.1}% of the {}^3-cell blocks hold one",
+        100.0 * grid.occupancy(),
+        100.0 * upper_set as f64 / upper as f64,
+        100.0 * held as f64 / blocks.len() as f64,
+        BLOCK
+    );
 }

@@ -7,12 +7,13 @@
 //! The size is the real-capture trials' (RESULTS.md; `examples/capture_trials.rs` trains the
 //! same captures at the same seed, so `capture_trials 96 600 none,exposure,pose5-scene-noise,
 //! pose5-scene-noise-unregistered` reproduces these figures and the unregistered one).
-//! Measured (2026-12-05, commit ce0b0ee, `RNERF_CPU_LEVEL=avx2`, each printed by its test): the
-//! exact capture 0.0324 m; the exposure ×(1.2, 1.1, 0.9), corrected, 0.0322 m; the scene's poses
-//! off by 5 mm and 0.5°, registered, 0.0466 m; the same unregistered 0.0652 m (`capture_trials`,
-//! `results/prior_stop/`), outside the margin (0.0536 m), so the pose test can fail. At 64 px and 300 steps, where this test ran before, the glass was
-//! already mostly seen through on the exact capture (0.153 m) and 2 mm and 0.2° lost it
-//! whether registered or not (0.46 / 0.41 m), so nothing about poses could be shown there.
+//! Measured (2026-12-05, commit ce0b0ee, `RNERF_CPU_LEVEL=avx2`; the first three printed by
+//! their tests): the exact capture 0.0324 m; the exposure ×(1.2, 1.1, 0.9), corrected, 0.0322 m;
+//! the scene's poses off by 5 mm and 0.5°, registered, 0.0466 m; the same unregistered 0.0652 m
+//! (`capture_trials`, `results/prior_stop/`), outside the margin (0.0536 m), so the pose test can
+//! fail. At 64 px and 300 steps, where this test ran before, the glass was already mostly seen
+//! through on the exact capture (0.153 m) and 2 mm and 0.2° lost it whether registered or not
+//! (0.46 / 0.41 m), so nothing about poses could be shown there.
 //! `tests/register.rs` tests the registration itself.
 
 use residual_nerf::app::{demo_config, train_background};

@@ -253,6 +253,10 @@ fn the_rays_own_colour_fills_an_early_stop_exactly_on_a_field_of_one_colour() {
             let flat = o.iter().all(|&c| (c - 0.5).abs() < 1e-5);
             if o != b {
                 assert!(flat, "stop {stop}, pixel {p}: {o:?} (the background fill: {b:?})");
+                assert!(
+                    b.iter().all(|&c| (c - 0.5).abs() <= stop),
+                    "stop {stop}, pixel {p}: the background fill {b:?}"
+                );
                 stopped += 1;
             } else if !flat {
                 // Not stopped: what the background let through is mixed in either way.

@@ -281,7 +281,7 @@ impl<M: Model> ViewRenderer<M> {
         let n = (k.width * k.height) as usize;
         let tile = (TILE_PIXELS / k.width as usize).max(1) * k.width as usize;
         let first = if full { FIRST_SEGMENT } else { self.depth_round };
-        let stop = (self.stop, self.fill);
+        let early = (self.stop, self.fill);
         let threads = rayon::current_num_threads().clamp(1, n.div_ceil(tile).max(1));
         if self.workers.len() < threads {
             self.workers.resize_with(threads, Worker::default);
@@ -297,7 +297,7 @@ impl<M: Model> ViewRenderer<M> {
         };
         self.workers[..threads].par_iter_mut().for_each(|w| {
             while let Some((pixels, out)) = next_tile() {
-                w.run_tile(isa, scene, k, pose, pixels, m, full, first, stop, background, out);
+                w.run_tile(isa, scene, k, pose, pixels, m, full, first, early, background, out);
             }
         });
     }
