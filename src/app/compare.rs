@@ -100,6 +100,8 @@ pub(super) fn run(a: &crate::cli::CompareArgs) -> Result<(), String> {
     let (grid, mut train) = trainer_settings(a.steps, a.rays, a.log2t, a.seed, any_alpha);
     train.frozen_stride = a.frozen_stride.unwrap_or(train.frozen_stride);
     train.frozen_tail = a.frozen_tail.unwrap_or(train.frozen_tail);
+    (train.frozen_coarse, train.frozen_coarse_stride) =
+        a.frozen_coarse.unwrap_or((train.frozen_coarse, train.frozen_coarse_stride));
     train.ray_pool = a.ray_pool.unwrap_or(train.ray_pool);
     train.image_gains = a.image_gains;
     train.pixel_jitter = a.pixel_jitter.unwrap_or(train.pixel_jitter);

@@ -142,6 +142,8 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
     cfg.random_background &= a.random_bg.unwrap_or(true);
     cfg.frozen_stride = a.frozen_stride.unwrap_or(cfg.frozen_stride);
     cfg.frozen_tail = a.frozen_tail.unwrap_or(cfg.frozen_tail);
+    (cfg.frozen_coarse, cfg.frozen_coarse_stride) =
+        a.frozen_coarse.unwrap_or((cfg.frozen_coarse, cfg.frozen_coarse_stride));
     cfg.ray_pool = a.ray_pool.unwrap_or(cfg.ray_pool);
     cfg.image_gains = a.image_gains;
     cfg.error_map = a.error_map;
@@ -369,6 +371,7 @@ fn run_metadata(
         ("train_near_gradient_distance", cfg.near_gradient_distance.to_string()),
         ("train_frozen_stride", cfg.frozen_stride.to_string()),
         ("train_frozen_tail", cfg.frozen_tail.to_string()),
+        ("train_frozen_coarse", format!("{},{}", cfg.frozen_coarse, cfg.frozen_coarse_stride)),
         ("train_ray_pool", cfg.ray_pool.to_string()),
         ("train_image_gains", cfg.image_gains.map_or("off".into(), |l| format!("on (prior {l})"))),
         ("train_error_map", cfg.error_map.map_or("off".into(), |s| format!("share {s}"))),

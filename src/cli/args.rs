@@ -151,6 +151,9 @@ pub struct TrainArgs {
     /// The transmittance below which a training ray past a residual model's change region
     /// stops (`--frozen-tail T`).
     pub frozen_tail: Option<f32>,
+    /// Past a residual model's change region, the transmittance below which a training ray's
+    /// frozen samples go on N lattice steps each (`--frozen-coarse T,N`; `off`: (0, 1)).
+    pub frozen_coarse: Option<(f32, u32)>,
     /// Times each pooled training ray of a residual model is drawn (`--ray-pool N`; 0 or 1:
     /// every ray fresh).
     pub ray_pool: Option<u32>,
@@ -211,6 +214,9 @@ pub struct CompareArgs {
     /// The transmittance below which a training ray past a residual model's change region
     /// stops (`--frozen-tail T`).
     pub frozen_tail: Option<f32>,
+    /// Past a residual model's change region, the transmittance below which a training ray's
+    /// frozen samples go on N lattice steps each (`--frozen-coarse T,N`; `off`: (0, 1)).
+    pub frozen_coarse: Option<(f32, u32)>,
     /// Times each pooled training ray of a residual model is drawn (`--ray-pool N`; 0 or 1:
     /// every ray fresh).
     pub ray_pool: Option<u32>,

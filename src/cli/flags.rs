@@ -50,6 +50,7 @@ pub(super) const FLAGS: &[Flag] = &[
     Flag { name: "region-vote", commands: &["train", "compare"], setting: true },
     Flag { name: "frozen-stride", commands: &["train", "compare"], setting: true },
     Flag { name: "frozen-tail", commands: &["train", "compare"], setting: true },
+    Flag { name: "frozen-coarse", commands: &["train", "compare"], setting: true },
     Flag { name: "ray-pool", commands: &["train", "compare"], setting: true },
     Flag { name: "image-gains", commands: &["train", "compare"], setting: true },
     Flag { name: "error-map", commands: &["train"], setting: true },
@@ -133,6 +134,7 @@ pub(super) struct Flags {
     pub(super) registration_passes: Option<u32>,
     pub(super) frozen_stride: Option<u32>,
     pub(super) frozen_tail: Option<f32>,
+    pub(super) frozen_coarse: Option<(f32, u32)>,
     pub(super) ray_pool: Option<u32>,
     /// `--image-gains on`: the identity prior's weight; off or not given: `None`.
     pub(super) image_gains: Option<f32>,
@@ -220,6 +222,19 @@ impl Flags {
                     return Err(err(format!("--frozen-tail: {v} is outside [0, 0.5]")));
                 }
                 self.frozen_tail = Some(v);
+            }
+            "frozen-coarse" => {
+                let s = text(p, name)?;
+                self.frozen_coarse = Some(match s.split_once(',') {
+                    _ if s == "off" => (0.0, 1),
+                    Some((t, n)) => match (t.parse::<f32>(), n.parse::<u32>()) {
+                        (Ok(t), Ok(n)) if (0.0..=1.0).contains(&t) && (1..=64).contains(&n) => (t, n),
+                        _ => {
+                            return Err(err(format!("--frozen-coarse: '{s}' is not T,N with T in [0, 1], N in 1..=64")))
+                        }
+                    },
+                    None => return Err(err(format!("--frozen-coarse: '{s}' is not T,N or off"))),
+                });
             }
             "ray-pool" => {
                 let max = crate::train::trainer::MAX_RAY_POOL;

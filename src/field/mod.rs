@@ -337,8 +337,9 @@ impl NerfField {
 
     /// Chunk forward, first half, on this thread: `positions` become the chunk's rows `from..`
     /// (rows before `from` are kept: a ray evaluated segment by segment grows its chunk;
-    /// `from = 0` starts a new one) — encoded and through the density network; their raw
-    /// densities `s` into `raw`. A chunk grown in steps holds the same bits as one call.
+    /// `from = 0` starts a new one; rows at `from` and after it are replaced, so a ray may take
+    /// back its last samples) — encoded and through the density network; their raw densities
+    /// `s` into `raw`. A chunk grown in steps holds the same bits as one call.
     pub fn chunk_density(
         &self,
         isa: Isa,
@@ -349,7 +350,7 @@ impl NerfField {
         c: &mut FieldChunk,
     ) {
         assert_eq!(raw.len(), positions.len(), "field: output length differs from the sample count");
-        assert!(from == 0 || from == c.len(), "field: a chunk grows from its end");
+        assert!(from <= c.len(), "field: a chunk grows from its rows");
         self.chunk_encode(isa, params, positions, c, from);
         self.nets_density(isa, params, &c.enc, from, raw, &mut c.nets);
     }

@@ -339,7 +339,7 @@ pub fn train_config_json(c: &TrainConfig) -> Value {
         "beta_unchanged": c.beta.unchanged, "beta_entropy": c.beta.entropy, "beta_entropy_from": c.beta.entropy_from,
         "frozen_stride": c.frozen_stride, "image_gains": c.image_gains, "error_map": c.error_map,
         "pixel_jitter": c.pixel_jitter, "pixel_rays": c.pixel_rays, "ray_pool": c.ray_pool,
-        "frozen_tail": c.frozen_tail,
+        "frozen_tail": c.frozen_tail, "frozen_coarse": c.frozen_coarse, "frozen_coarse_stride": c.frozen_coarse_stride,
     })
 }
 
@@ -398,6 +398,12 @@ pub fn parse_train_config(v: &Value, occupancy: OccupancyConfig) -> Result<Train
         },
         // Added later: absent means off (how they were trained).
         frozen_tail: optional(v, "frozen_tail", 0.5)?,
+        // Added later: absent means off (how they were trained).
+        frozen_coarse: optional(v, "frozen_coarse", 1.0)?,
+        frozen_coarse_stride: match v.get("frozen_coarse_stride") {
+            None => 1,
+            Some(_) => uint(v, "frozen_coarse_stride", 1, 64)? as u32,
+        },
         // Added after the first checkpoints: absent means every step (how they were trained).
         frozen_stride: match v.get("frozen_stride") {
             None => 1,

@@ -203,7 +203,7 @@ impl<const W: usize> Mlp<W> {
     ) {
         assert_eq!(params.weights.len(), self.n_params, "mlp: parameter buffer has the wrong length");
         assert!(input.len() >= n * self.input_stride(), "mlp: input holds fewer than n rows");
-        assert!(from == 0 || (from <= n && from == ctx.n), "mlp: forward_from continues the last pass's rows");
+        assert!(from == 0 || (from <= n && from <= ctx.n), "mlp: forward_from continues the last pass's rows");
         assert!(
             isa.level().mlp_is_fp32() || params.synced,
             "mlp: weights changed since the last MlpParams::sync (stale bf16 copy)"

@@ -36,7 +36,7 @@
 //! and at the same training time fewer fresh rays per step (`--rays 512`) give better depth
 //! (docs/DECISIONS.md, "The ray pool").
 
-use super::step::{march_in_segments, StepRays, RAY_SEGMENT};
+use super::step::{march_in_segments, Flow, StepRays, RAY_SEGMENT};
 use super::trainer::{draw_pixel, is_unchanged, ray_through, TrainConfig};
 use crate::data::View;
 use crate::field::model::FrozenOutside;
@@ -270,7 +270,7 @@ impl Filler {
         let (positions, raw, keep, inside, chunk) =
             (&mut self.positions, &mut self.raw, &mut self.keep, &mut self.inside, &mut self.chunk);
         let (occ, stride) = (x.occupancy, x.cfg.frozen_stride);
-        march_in_segments(occ, &ray, stride, RAY_SEGMENT, &mut self.t, &mut self.delta, |t, delta, seg| {
+        march_in_segments(occ, &ray, (stride, stride), RAY_SEGMENT, &mut self.t, &mut self.delta, |t, delta, seg| {
             positions.extend(t[seg.clone()].iter().map(|&t| ray.at(t)));
             raw.resize(seg.end, 0.0);
             bg.field.chunk_density(x.isa, &bg.params, seg.start, &positions[seg.clone()], &mut raw[seg.clone()], chunk);
@@ -285,7 +285,11 @@ impl Filler {
                     t_out *= transmitted(split.outside(raw[i], [0.0; 3]).0, delta[i]);
                 }
             }
-            is_opaque(t_out)
+            if is_opaque(t_out) {
+                Flow::Stop
+            } else {
+                Flow::Go
+            }
         });
         let marched = self.t.len() as u32;
         let k = self.keep.len();
@@ -410,6 +414,8 @@ mod tests {
         let mut cfg = TrainConfig::with_steps(10);
         cfg.rays_per_step = 128;
         cfg.occupancy = occ_cfg;
+        // The frozen tail's coarse part off whatever its default; the tests that want it turn it on.
+        cfg.frozen_coarse = 0.0;
         cfg.beta.unchanged = 0.5;
         cfg.focus = Some(Focus {
             share: 0.25,
@@ -529,16 +535,61 @@ mod tests {
     #[test]
     fn a_step_has_the_same_bits_whatever_the_segment_length() {
         frozen_outside_step(|rays, run, cfg| {
-            for tau in [0.0f32, 0.3] {
+            for (tau, coarse) in [(0.0f32, 0.0f32), (0.3, 0.0), (0.05, 0.5)] {
                 let mut c = cfg.clone();
                 c.frozen_tail = tau;
+                (c.frozen_coarse, c.frozen_coarse_stride) = (coarse, 4);
                 let reference = run(Some(RAY_SEGMENT), &c, rays);
                 assert!(reference.1 > 0 && reference.2.iter().any(|g| g.iter().any(|&v| v != 0.0)));
                 for segment in [1, 7, 500] {
                     let step = run(Some(segment), &c, rays);
-                    assert!(step == reference, "τ = {tau}: segments of {segment} samples change the step");
+                    assert!(
+                        step == reference,
+                        "τ = {tau}, coarse below {coarse}: segments of {segment} change the step"
+                    );
                 }
             }
+        });
+    }
+
+    /// The frozen tail's coarse part ([`TrainConfig::frozen_coarse`]): past the region, once a
+    /// ray's transmittance is below T its frozen samples stand for N lattice steps each. It
+    /// keeps fewer samples, more so at a larger T or N; at N = 1 it is off, bit for bit; it
+    /// moves the loss by less than T of itself (the light still to come when it starts), and
+    /// no group's gradient turns. (This random background lets light through slowly, so the
+    /// coarse part covers much of each ray here.)
+    #[test]
+    fn the_frozen_tails_coarse_part_keeps_fewer_samples_and_moves_the_step_by_less_than_its_light() {
+        frozen_outside_step(|rays, run, cfg| {
+            let mut fine = cfg.clone();
+            fine.frozen_tail = 0.01;
+            let exact = run(Some(RAY_SEGMENT), &fine, rays);
+            let with = |below: f32, stride: u32| {
+                let mut c = fine.clone();
+                (c.frozen_coarse, c.frozen_coarse_stride) = (below, stride);
+                run(Some(RAY_SEGMENT), &c, rays)
+            };
+            assert!(with(0.5, 1) == exact, "a stride of 1 is every step");
+            let (loss_f, kept_f, grads_f) = &exact;
+            let mut kept = Vec::new();
+            for (below, stride) in [(0.3f32, 2u32), (0.3, 4), (0.5, 4)] {
+                let (loss_c, kept_c, grads_c) = with(below, stride);
+                assert!(kept_c < *kept_f, "{below},{stride} keeps fewer samples ({kept_c} of {kept_f})");
+                let dl = (loss_c - loss_f).abs() / loss_f;
+                assert!(dl < below as f64, "{below},{stride}: loss {loss_c} coarse, {loss_f} fine");
+                for (i, (c, f)) in grads_c.iter().zip(grads_f).enumerate() {
+                    let dot = |a: &[f32], b: &[f32]| a.iter().zip(b).map(|(x, y)| *x as f64 * *y as f64).sum::<f64>();
+                    let (cc, ff, cf) = (dot(c, c), dot(f, f), dot(c, f));
+                    if ff == 0.0 {
+                        assert_eq!(cc, 0.0, "{below},{stride}: group {i} gains a gradient");
+                        continue;
+                    }
+                    let cos = cf / (cc * ff).sqrt();
+                    assert!(cos > 0.9, "{below},{stride}: group {i}'s gradient turns (cos {cos})");
+                }
+                kept.push(kept_c);
+            }
+            assert!(kept[1] < kept[0] && kept[2] < kept[1], "a larger stride or T keeps fewer samples ({kept:?})");
         });
     }
 

@@ -80,24 +80,39 @@ pub const CHUNK_SAMPLES: usize = 128;
 /// tail".
 pub const RAY_SEGMENT: usize = 32;
 
+/// What a ray's segment callback tells [`march_in_segments`].
+pub(super) enum Flow {
+    /// March on.
+    Go,
+    /// The ray stopped (opaque, or at the frozen tail).
+    Stop,
+    /// Keep the samples up to index `i` and march the rest of the ray at the coarse stride
+    /// from the end of sample `i`: the samples after `i` are dropped (the callback drops its
+    /// own rows of them). [`TrainConfig::frozen_coarse`].
+    Coarsen(usize),
+}
+
 /// Marches `r` through `occ` segment by segment (`len` samples each), appending
 /// each segment's samples to `t` and `delta` and handing `segment` the new samples' index range
-/// (with the arrays so far); stops after a segment for which it returns true (the ray stopped:
-/// opaque, or at the frozen tail), at the end of the ray's span, or at the grid's sample budget. The segments
-/// concatenate to exactly the samples of marching the whole ray. The training step's rays and
-/// the ray pool's ([`super::pool`]) march this way.
+/// (with the arrays so far); stops after a segment for which it returns [`Flow::Stop`], at the
+/// end of the ray's span, or at the grid's sample budget. `strides`: lattice steps a sample
+/// stands for outside the grid's pinned cells ([`OccupancyGrid::march_segment`]), before and
+/// after a [`Flow::Coarsen`]. The segments concatenate to exactly the samples of marching the
+/// whole ray (at the coarse stride from the sample the callback names): which samples a ray
+/// takes does not depend on `len`. The training step's rays and the ray pool's
+/// ([`super::pool`]) march this way.
 pub(super) fn march_in_segments(
     occ: &OccupancyGrid,
     r: &Ray,
-    stride: u32,
+    (stride, coarse_stride): (u32, u32),
     len: usize,
     t: &mut Vec<f32>,
     delta: &mut Vec<f32>,
-    mut segment: impl FnMut(&[f32], &[f32], std::ops::Range<usize>) -> bool,
+    mut segment: impl FnMut(&[f32], &[f32], std::ops::Range<usize>) -> Flow,
 ) {
     let Some(span) = occ.span(r.origin, r.dir) else { return };
     let max = occ.config().max_samples;
-    let (mut next, mut taken) = (0, 0u32);
+    let (mut next, mut taken, mut stride) = (0, 0u32, stride);
     loop {
         let s0 = t.len();
         let room = len.max(1).min(max.saturating_sub(taken) as usize);
@@ -107,7 +122,21 @@ pub(super) fn march_in_segments(
             break;
         }
         taken += count as u32;
-        if segment(t, delta, s0..s0 + count) || next >= span.steps || taken >= max {
+        match segment(t, delta, s0..s0 + count) {
+            Flow::Go => {}
+            Flow::Stop => break,
+            Flow::Coarsen(i) => {
+                // Sample i stands for the lattice steps [k, k + run) around its midpoint
+                // t = near + (k + run/2)·dt, δ = run·dt: the march resumes at k + run.
+                let dt = occ.step_size();
+                next = ((t[i] - span.near + 0.5 * delta[i]) / dt).round() as u32;
+                taken -= (t.len() - i - 1) as u32;
+                t.truncate(i + 1);
+                delta.truncate(i + 1);
+                stride = stride.max(coarse_stride);
+            }
+        }
+        if next >= span.steps || taken >= max {
             break;
         }
     }
@@ -469,11 +498,14 @@ impl<C> Worker<C> {
         let first_kept = self.keep.len() as u32;
         let mut acc = RayAccumulator::new();
         let tail = frozen_tail_start(x, r);
-        let (occ, stride, len) = (x.occupancy, x.cfg.frozen_stride, self.segment);
+        let (cfg, occ, len) = (x.cfg, x.occupancy, self.segment);
+        let strides = (cfg.frozen_stride, cfg.frozen_coarse_stride);
+        // Past the tail's start, below this transmittance the ray goes on at the coarse stride.
+        let mut coarse_below = if cfg.frozen_coarse_stride > cfg.frozen_stride { cfg.frozen_coarse } else { 0.0 };
         let mut tailed = false;
         let (positions, dirs, sigma, keep, chunk) =
             (&mut self.positions, &mut self.dirs, &mut self.sigma, &mut self.keep, &mut self.chunk);
-        march_in_segments(occ, r, stride, len, &mut m.t, &mut m.delta, |t, delta, seg| {
+        march_in_segments(occ, r, strides, len, &mut m.t, &mut m.delta, |t, delta, seg| {
             for &t in &t[seg.clone()] {
                 positions.push(r.at(t));
                 dirs.push(r.dir);
@@ -486,9 +518,21 @@ impl<C> Worker<C> {
                 }
                 acc.push(sigma[i], delta[i], 0.0, [0.0; 3]);
                 keep.push(i as u32);
-                tailed = !acc.is_opaque() && t[i] > tail && acc.transmittance() < x.cfg.frozen_tail;
+                let past = !acc.is_opaque() && t[i] > tail;
+                tailed = past && acc.transmittance() < cfg.frozen_tail;
+                if past && !tailed && acc.transmittance() < coarse_below {
+                    coarse_below = 0.0;
+                    positions.truncate(i + 1);
+                    dirs.truncate(i + 1);
+                    sigma.truncate(i + 1);
+                    return Flow::Coarsen(i);
+                }
             }
-            acc.is_opaque() || tailed
+            if acc.is_opaque() || tailed {
+                Flow::Stop
+            } else {
+                Flow::Go
+            }
         });
         m.rays.push((start as u32, (m.t.len() - start) as u32));
         self.kept.push((first_kept, self.keep.len() as u32 - first_kept));
