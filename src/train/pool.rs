@@ -483,6 +483,25 @@ mod tests {
         });
     }
 
+    /// Per gradient group, an approximate step's gradient against the exact step's: the cosine
+    /// between them and the relative error `|a − e| / |e|`; `None` for a group the exact step
+    /// leaves without a gradient (the approximate step must leave it so too). `what` names
+    /// the approximation in the messages.
+    fn group_agreement(approx: &[Vec<f32>], exact: &[Vec<f32>], what: &str) -> Vec<Option<(f64, f64)>> {
+        let dot = |a: &[f32], b: &[f32]| a.iter().zip(b).map(|(x, y)| *x as f64 * *y as f64).sum::<f64>();
+        let groups = approx.iter().zip(exact).enumerate();
+        groups
+            .map(|(i, (a, e))| {
+                let (aa, ee, ae) = (dot(a, a), dot(e, e), dot(a, e));
+                if ee == 0.0 {
+                    assert_eq!(aa, 0.0, "{what}: group {i} gains a gradient");
+                    return None;
+                }
+                Some((ae / (aa * ee).sqrt(), ((aa - 2.0 * ae + ee) / ee).max(0.0).sqrt()))
+            })
+            .collect()
+    }
+
     /// The frozen tail stops rays beyond the region early and perturbs the step by no more
     /// than the light it stops marching: the loss moves by less than τ of itself, the loss and
     /// every group's gradient come closer to the exact step as τ shrinks, and at τ = 0.1 each
@@ -505,16 +524,11 @@ mod tests {
                 let dl = (loss_t - loss_f).abs() / loss_f;
                 assert!(dl < tau as f64, "τ = {tau}: loss {loss_t} with the tail, {loss_f} without");
                 let mut errors = Vec::new();
-                for (i, (t, f)) in grads_t.iter().zip(grads_f).enumerate() {
-                    let dot = |a: &[f32], b: &[f32]| a.iter().zip(b).map(|(x, y)| *x as f64 * *y as f64).sum::<f64>();
-                    let (tt, ff, tf) = (dot(t, t), dot(f, f), dot(t, f));
-                    if ff == 0.0 {
-                        assert_eq!(tt, 0.0, "τ = {tau}: group {i} gains a gradient");
-                        continue;
-                    }
-                    let cos = tf / (tt * ff).sqrt();
+                for (i, agreement) in group_agreement(&grads_t, grads_f, &format!("τ = {tau}")).into_iter().enumerate()
+                {
+                    let Some((cos, error)) = agreement else { continue };
                     assert!(tau > 0.1 || cos > 0.9, "τ = {tau}: group {i}'s gradient turns (cos {cos})");
-                    errors.push(((tt - 2.0 * tf + ff) / ff).max(0.0).sqrt());
+                    errors.push(error);
                 }
                 if let Some((kept_l, dl_l, errors_l)) = &last {
                     assert!(kept_t >= *kept_l, "a smaller τ keeps more samples ({kept_t} < {kept_l})");
@@ -577,15 +591,10 @@ mod tests {
                 assert!(kept_c < *kept_f, "{below},{stride} keeps fewer samples ({kept_c} of {kept_f})");
                 let dl = (loss_c - loss_f).abs() / loss_f;
                 assert!(dl < below as f64, "{below},{stride}: loss {loss_c} coarse, {loss_f} fine");
-                for (i, (c, f)) in grads_c.iter().zip(grads_f).enumerate() {
-                    let dot = |a: &[f32], b: &[f32]| a.iter().zip(b).map(|(x, y)| *x as f64 * *y as f64).sum::<f64>();
-                    let (cc, ff, cf) = (dot(c, c), dot(f, f), dot(c, f));
-                    if ff == 0.0 {
-                        assert_eq!(cc, 0.0, "{below},{stride}: group {i} gains a gradient");
-                        continue;
-                    }
-                    let cos = cf / (cc * ff).sqrt();
-                    assert!(cos > 0.9, "{below},{stride}: group {i}'s gradient turns (cos {cos})");
+                let what = format!("{below},{stride}");
+                for (i, agreement) in group_agreement(&grads_c, grads_f, &what).into_iter().enumerate() {
+                    let Some((cos, _)) = agreement else { continue };
+                    assert!(cos > 0.9, "{what}: group {i}'s gradient turns (cos {cos})");
                 }
                 kept.push(kept_c);
             }
