@@ -129,7 +129,8 @@ fn run<M: Model>(scene: &Scene<'_, M>, views: &[(Intrinsics, Pose)], lengths: &[
 fn print_grid(grid: &OccupancyGrid) {
     let r = grid.config().resolution as usize;
     let (aabb, cell) = (grid.aabb(), grid.aabb().size() / r as f32);
-    let b = r.div_ceil(BLOCK as usize);
+    let bl = BLOCK as usize;
+    let b = r.div_ceil(bl);
     let mut blocks = vec![false; b * b * b];
     let (mut upper, mut upper_set) = (0usize, 0usize);
     for z in 0..r {
@@ -141,14 +142,13 @@ fn print_grid(grid: &OccupancyGrid) {
                     upper += 1;
                     upper_set += set as usize;
                 }
-                let bl = BLOCK as usize;
                 blocks[x / bl + b * (y / bl + b * (z / bl))] |= set;
             }
         }
     }
     let held = blocks.iter().filter(|&&h| h).count();
     println!(
-        "thinned grid: {:.1}% of the cells occupied, {:.1}% of those in the box's upper half, {:.1}% of the {}^3-cell blocks hold one",
+        "thinned grid: {:.1}% of the cells occupied, {:.1}% of the cells in the box's upper half, {:.1}% of the {}^3-cell blocks hold one",
         100.0 * grid.occupancy(),
         100.0 * upper_set as f64 / upper as f64,
         100.0 * held as f64 / blocks.len() as f64,

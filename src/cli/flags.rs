@@ -226,7 +226,7 @@ impl Flags {
             "frozen-coarse" => {
                 let s = text(p, name)?;
                 self.frozen_coarse = Some(match s.split_once(',') {
-                    _ if s == "off" => (0.0, 1),
+                    None if s == "off" => (0.0, 1),
                     Some((t, n)) => match (t.parse::<f32>(), n.parse::<u32>()) {
                         (Ok(t), Ok(n)) if (0.0..=1.0).contains(&t) && (1..=64).contains(&n) => (t, n),
                         _ => {

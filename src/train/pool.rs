@@ -555,6 +555,12 @@ mod tests {
                 (c.frozen_coarse, c.frozen_coarse_stride) = (coarse, 4);
                 let reference = run(Some(RAY_SEGMENT), &c, rays);
                 assert!(reference.1 > 0 && reference.2.iter().any(|g| g.iter().any(|&v| v != 0.0)));
+                if coarse > 0.0 {
+                    let mut fine = c.clone();
+                    fine.frozen_coarse = 0.0;
+                    let kept_fine = run(Some(RAY_SEGMENT), &fine, rays).1;
+                    assert!(reference.1 < kept_fine, "the coarse part bites ({} of {kept_fine} kept)", reference.1);
+                }
                 for segment in [1, 7, 500] {
                     let step = run(Some(segment), &c, rays);
                     assert!(
