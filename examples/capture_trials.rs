@@ -33,7 +33,9 @@
 //! `exposure-jitter-gains-background` (gains learned by the background's run only);
 //! `none-gains` (one exposure, every run learning gains: what they cost where nothing moves).
 //! Any trial with `-floor` appended runs the same with the residual's density floor on
-//! (`--region-floor 0`, `train::lift`; docs/DECISIONS.md, "The density floor with the raw mix").
+//! (`--region-floor 0`, `train::lift`; docs/DECISIONS.md, "The density floor with the raw mix"),
+//! and with `-tolT` appended last (e.g. `none-tol0.05`) with the change maps' tolerance T
+//! (`--change-tolerance T`; docs/DECISIONS.md, "The change maps' tolerance").
 //! SEED (default 0) seeds every run's initialisation and sampling, not the captures.
 
 use residual_nerf::app::{demo_config, train_background};
@@ -95,10 +97,15 @@ fn main() -> Result<(), String> {
     );
     println!("|---|---|---|---|---|---|---|---|");
     for label in trials {
+        // `TRIAL-tolT`: the trial with the change maps' tolerance T (`--change-tolerance T`).
+        let (name, tolerance) = match label.rsplit_once("-tol").map(|(n, t)| (n, t.parse::<f32>())) {
+            Some((name, Ok(t))) => (name, Some(t)),
+            _ => (label, None),
+        };
         // `TRIAL-floor`: the trial with the residual's density floor on (`--region-floor 0`).
-        let (name, floor) = match label.strip_suffix("-floor") {
+        let (name, floor) = match name.strip_suffix("-floor") {
             Some(name) => (name, true),
-            None => (label, false),
+            None => (name, false),
         };
         let (bg_capture, scene_capture) = trial(name)?;
         let mut bg = workspace::workspace_capture(size, 32, 0.0, Glass::None, &bg_capture);
@@ -142,6 +149,9 @@ fn main() -> Result<(), String> {
         cfg.prior.register = !name.ends_with("-unregistered");
         if floor {
             cfg.prior.lift = Some(LiftConfig::DEFAULT);
+        }
+        if let Some(t) = tolerance {
+            cfg.prior.tolerance = t;
         }
         let r = run_scene(isa, label, &background, &bg.views, &scene.views, &test, &methods, &cfg, &mut |_, _| {})?;
         for m in &r.methods {

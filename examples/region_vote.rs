@@ -8,9 +8,10 @@
 //! cargo run --release --example region_vote -- bg.safetensors DEV/background DEV/glass_up 0.5,0 0.75,0.25
 //! ```
 //!
-//! Each `V,S` is a vote rule (`rnerf train --region-vote V,S`): a cell is changed when at
-//! least S of all views see it and at least V of those see a change there. Default rules:
-//! 0.5,0 0.75,0 0.5,0.25 0.75,0.25 0.9,0.25. The scene's test split must carry object masks.
+//! Each `V,S[,D]` is a vote rule (`rnerf train --region-vote V,S --region-dilate D`): a cell is
+//! changed when at least S of all views see it and at least V of those see a change there, and
+//! the voted cells are grown by D cells (default 1). Default rules: 0.5,0 0.75,0 0.5,0.25
+//! 0.75,0.25 0.9,0.25. The scene's test split must carry object masks.
 
 use residual_nerf::data::dataset::{Dataset, LoadOptions};
 use residual_nerf::render::DensityThreshold;
@@ -21,18 +22,20 @@ use std::path::Path;
 fn main() -> Result<(), String> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let [model, bg_dir, scene_dir, rules @ ..] = &args[..] else {
-        return Err("usage: region_vote BG_MODEL BG_DIR SCENE_DIR [V,S ...]".into());
+        return Err("usage: region_vote BG_MODEL BG_DIR SCENE_DIR [V,S[,D] ...]".into());
     };
+    let dilate = PriorConfig::default().region_dilate;
     let mut votes = Vec::new();
     for r in rules {
         let v: Vec<f32> = r.split(',').filter_map(|x| x.parse().ok()).collect();
         match v[..] {
-            [vote, seen] => votes.push((vote, seen)),
-            _ => return Err(format!("rule '{r}' is not V,S")),
+            [vote, seen] => votes.push((vote, seen, dilate)),
+            [vote, seen, d] if d >= 0.0 && d.fract() == 0.0 => votes.push((vote, seen, d as u32)),
+            _ => return Err(format!("rule '{r}' is not V,S or V,S,D")),
         }
     }
     if votes.is_empty() {
-        votes = vec![(0.5, 0.0), (0.75, 0.0), (0.5, 0.25), (0.75, 0.25), (0.9, 0.25)];
+        votes = [(0.5, 0.0), (0.75, 0.0), (0.5, 0.25), (0.75, 0.25), (0.9, 0.25)].map(|(v, s)| (v, s, dilate)).to_vec();
     }
     let isa = residual_nerf::simd::Isa::detect();
     let background = residual_nerf::io::model::load_nerf(Path::new(model))?;
@@ -46,10 +49,10 @@ fn main() -> Result<(), String> {
     // No surface in the test views: a region cell anywhere along a pixel's ray covers it.
     let open: Vec<Vec<f32>> = test.views.iter().map(|v| vec![f32::INFINITY; v.rgb.len()]).collect();
     let test_pixels: usize = test.views.iter().map(|v| v.rgb.len()).sum();
-    println!("| vote V,S | cells | volume (m³) | training pixels changed | crossing the region | test pixels crossing | test object pixels covered |");
+    println!("| vote V,S, dilation | cells | volume (m³) | training pixels changed | crossing the region | test pixels crossing | test object pixels covered |");
     println!("|---|---|---|---|---|---|---|");
-    for (vote, min_seen) in votes {
-        let cfg = PriorConfig { vote, min_seen, ..Default::default() };
+    for (vote, min_seen, region_dilate) in votes {
+        let cfg = PriorConfig { vote, min_seen, region_dilate, ..Default::default() };
         let p = scene_prior(isa, &background, &bg.views, &scene.views, [0.5; 3], DensityThreshold::Sigma(10.0), &cfg);
         let reach = reach_pixels(&p.region, &test.views, &open);
         let mut hit = vec![HashSet::new(); test.views.len()];
@@ -64,7 +67,7 @@ fn main() -> Result<(), String> {
             }
         }
         println!(
-            "| {vote},{min_seen} | {} | {:.4} | {:.1}% | {:.1}% | {:.1}% | {:.1}% |",
+            "| {vote},{min_seen}, {region_dilate} | {} | {:.4} | {:.1}% | {:.1}% | {:.1}% | {:.1}% |",
             p.region.count(),
             p.region.volume(),
             100.0 * p.changed_share(),

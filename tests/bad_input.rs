@@ -372,6 +372,13 @@ fn catalogue() -> Vec<Case> {
         case("steps not a number", |_| {}, "train --data {d} --out {d}/m.safetensors --steps ten", &["--steps", "ten"]),
         case("table size out of range", |_| {}, "train --data {d} --out {d}/m.safetensors --log2t 40", &["--log2t", "40"]),
         case("zero threads", |_| {}, "train --data {d} --out {d}/m.safetensors --threads 0", &["--threads"]),
+        case(
+            "change tolerance out of range",
+            |_| {},
+            "train --data {d} --out {d}/m.safetensors --change-tolerance 0.9",
+            &["--change-tolerance", "0.9"],
+        ),
+        case("region dilation too large", |_| {}, "train --data {d} --out {d}/m.safetensors --region-dilate 9", &["--region-dilate", "9"]),
         case("negative threshold", |_| {}, "render --model {d}/m --data {d} --out {d}/r --m -1", &["--m"]),
         case("unknown flag", |_| {}, "train --data {d} --out {d}/m.safetensors --fast", &["--fast"]),
         case("unknown command", |_| {}, "paint --out {d}/x", &["unknown command 'paint'"]),

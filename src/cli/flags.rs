@@ -48,6 +48,8 @@ pub(super) const FLAGS: &[Flag] = &[
     Flag { name: "region-floor", commands: &["train", "compare"], setting: true },
     Flag { name: "focus-share", commands: &["train", "compare"], setting: true },
     Flag { name: "region-vote", commands: &["train", "compare"], setting: true },
+    Flag { name: "region-dilate", commands: &["train", "compare"], setting: true },
+    Flag { name: "change-tolerance", commands: &["train", "compare"], setting: true },
     Flag { name: "frozen-stride", commands: &["train", "compare"], setting: true },
     Flag { name: "frozen-tail", commands: &["train", "compare"], setting: true },
     Flag { name: "frozen-coarse", commands: &["train", "compare"], setting: true },
@@ -129,6 +131,10 @@ pub(super) struct Flags {
     pub(super) region_floor: Option<Option<f32>>,
     pub(super) focus_share: Option<f32>,
     pub(super) region_vote: Option<(f32, f32)>,
+    /// `--region-dilate N`: cells the voted change region grows by.
+    pub(super) region_dilate: Option<u32>,
+    /// `--change-tolerance T`: colour difference above which a scene pixel changed.
+    pub(super) change_tolerance: Option<f32>,
     pub(super) exposure_correction: Option<bool>,
     pub(super) pose_registration: Option<bool>,
     pub(super) registration_passes: Option<u32>,
@@ -253,6 +259,14 @@ impl Flags {
                     _ => return Err(err(format!("--region-vote: '{s}' is not two shares V,S in [0, 1]"))),
                 }
             }
+            "region-dilate" => {
+                let s = text(p, name)?;
+                self.region_dilate = match s.parse::<u32>() {
+                    Ok(n) if n <= 4 => Some(n),
+                    _ => return Err(err(format!("--region-dilate: '{s}' is not a whole number of cells in 0..=4"))),
+                }
+            }
+            "change-tolerance" => self.change_tolerance = Some(finite(p, name, 0.0, 0.5)?),
             "resume" => self.resume = Some(path(p, name)?),
             "exposure-correction" => self.exposure_correction = Some(choice(p, name, &["on", "off"])? == "on"),
             "pose-registration" => self.pose_registration = Some(choice(p, name, &["on", "off"])? == "on"),
@@ -433,6 +447,8 @@ impl Flags {
             region_floor: self.region_floor,
             focus_share: self.focus_share,
             region_vote: self.region_vote,
+            region_dilate: self.region_dilate,
+            change_tolerance: self.change_tolerance,
             exposure_correction: self.exposure_correction,
             pose_registration: self.pose_registration,
         }

@@ -76,7 +76,7 @@ pub const MIN_NEIGHBOURS: u32 = 2;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PriorConfig {
     /// Colour difference (max over channels, of 3×3 box-filtered [0, 1] colours) above which a
-    /// pixel changed. Defaults to 0.05 (13/255).
+    /// pixel changed. Defaults to [`CHANGE_TOLERANCE`].
     pub tolerance: f32,
     /// Dilation of the change maps (pixels). Defaults to 2.
     pub dilate_px: u32,
@@ -125,6 +125,9 @@ pub struct PriorConfig {
 /// (docs/DECISIONS.md, "The prior's depth renders on the thinned grid").
 pub const DEPTH_SOLID_FRACTION: f32 = 1.0;
 
+/// Default of [`PriorConfig::tolerance`]: 0.05 (13/255).
+pub const CHANGE_TOLERANCE: f32 = 0.05;
+
 /// Default of [`PriorConfig::beta_dilate_px`]: the maps' own dilation, measured on the dev
 /// scenes against 0 and 1 (docs/DECISIONS.md, "β regularisers", "The penalty's margin").
 pub const BETA_DILATE_PX: u32 = 2;
@@ -141,7 +144,7 @@ pub const DEFAULT_BETA: BetaRegulariser = BetaRegulariser { unchanged: 0.02, ent
 impl Default for PriorConfig {
     fn default() -> Self {
         PriorConfig {
-            tolerance: 0.05,
+            tolerance: CHANGE_TOLERANCE,
             dilate_px: 2,
             beta_dilate_px: BETA_DILATE_PX,
             vote: 0.5,
@@ -184,7 +187,8 @@ pub struct ScenePrior {
 }
 
 /// A fitted gain within this of 1 in every channel is not applied: below that the fit is
-/// within a rendered background's noise, and the change maps' tolerance (0.05) absorbs it.
+/// within a rendered background's noise, and the change maps' tolerance ([`CHANGE_TOLERANCE`])
+/// absorbs it.
 pub const IDENTITY_GAIN: f32 = 0.02;
 
 /// A per-channel gain `c ↦ gain·c`, clamped to [0, 1]: an exposure and white-balance change.
