@@ -34,8 +34,9 @@
 //! `none-gains` (one exposure, every run learning gains: what they cost where nothing moves).
 //! Any trial with `-floor` appended runs the same with the residual's density floor on
 //! (`--region-floor 0`, `train::lift`; docs/DECISIONS.md, "The density floor with the raw mix"),
-//! and with `-tolT` appended last (e.g. `none-tol0.05`) with the change maps' tolerance T
-//! (`--change-tolerance T`; docs/DECISIONS.md, "The change maps' tolerance").
+//! and with `-tolT` appended last (e.g. `none-tol0.05`) with the change maps' tolerance T against
+//! background images and rendered background alike (`--change-tolerance T,T`; docs/DECISIONS.md,
+//! "The change maps' tolerance").
 //! SEED (default 0) seeds every run's initialisation and sampling, not the captures.
 
 use residual_nerf::app::{demo_config, train_background};
@@ -97,7 +98,7 @@ fn main() -> Result<(), String> {
     );
     println!("|---|---|---|---|---|---|---|---|");
     for label in trials {
-        // `TRIAL-tolT`: the trial with the change maps' tolerance T (`--change-tolerance T`).
+        // `TRIAL-tolT`: the trial with the change maps' tolerance T (`--change-tolerance T,T`).
         let (name, tolerance) = match label.rsplit_once("-tol").map(|(n, t)| (n, t.parse::<f32>())) {
             Some((name, Ok(t))) => (name, Some(t)),
             _ => (label, None),
@@ -151,7 +152,7 @@ fn main() -> Result<(), String> {
             cfg.prior.lift = Some(LiftConfig::DEFAULT);
         }
         if let Some(t) = tolerance {
-            cfg.prior.tolerance = t;
+            (cfg.prior.tolerance, cfg.prior.rendered_tolerance) = (t, t);
         }
         let r = run_scene(isa, label, &background, &bg.views, &scene.views, &test, &methods, &cfg, &mut |_, _| {})?;
         for m in &r.methods {

@@ -378,6 +378,12 @@ fn catalogue() -> Vec<Case> {
             "train --data {d} --out {d}/m.safetensors --change-tolerance 0.9",
             &["--change-tolerance", "0.9"],
         ),
+        case(
+            "change tolerance not T or T,R",
+            |_| {},
+            "train --data {d} --out {d}/m.safetensors --change-tolerance 0.03,0.05,0.1",
+            &["--change-tolerance", "0.03,0.05,0.1"],
+        ),
         case("region dilation too large", |_| {}, "train --data {d} --out {d}/m.safetensors --region-dilate 9", &["--region-dilate", "9"]),
         case("negative threshold", |_| {}, "render --model {d}/m --data {d} --out {d}/r --m -1", &["--m"]),
         case("unknown flag", |_| {}, "train --data {d} --out {d}/m.safetensors --fast", &["--fast"]),

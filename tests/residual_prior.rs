@@ -218,7 +218,10 @@ fn an_exposure_change_is_corrected_before_the_change_maps() {
     let gain = [1.2, 1.1, 0.9];
     let bg = workspace::workspace(size, 4, 0.0, false);
     let scene = workspace::workspace_capture(size, 4, 0.0, Glass::Sphere, &Capture { gain, ..Default::default() });
-    let cfg = PriorConfig::default();
+    // The correction is what is tested, at the tolerance 0.05: at the default 0.03 the pixels
+    // the gain saturated keep differences above it after the correction (2.4% of the pixels far
+    // from the glass on view 0; docs/DECISIONS.md, "The change maps' tolerance").
+    let cfg = PriorConfig { tolerance: 0.05, ..Default::default() };
     for i in 0..4 {
         let c = fit_correction(&scene.views[i].rgb, &bg.views[i].rgb);
         for k in 0..3 {

@@ -247,8 +247,9 @@ pub struct PriorArgs {
     pub region_vote: Option<(f32, f32)>,
     /// Cells the voted change region grows by (`--region-dilate N`).
     pub region_dilate: Option<u32>,
-    /// Colour difference above which a scene pixel changed (`--change-tolerance T`).
-    pub change_tolerance: Option<f32>,
+    /// Colour difference above which a scene pixel changed, and against the rendered background
+    /// (`--change-tolerance T[,R]`).
+    pub change_tolerance: Option<(f32, Option<f32>)>,
     /// Whether the scene images are corrected to the background's exposure and white balance
     /// (`--exposure-correction on|off`; default on).
     pub exposure_correction: Option<bool>,
@@ -274,7 +275,10 @@ impl PriorArgs {
         }
         p.beta_dilate_px = self.beta_margin.unwrap_or(p.beta_dilate_px);
         p.region_dilate = self.region_dilate.unwrap_or(p.region_dilate);
-        p.tolerance = self.change_tolerance.unwrap_or(p.tolerance);
+        if let Some((t, r)) = self.change_tolerance {
+            p.tolerance = t;
+            p.rendered_tolerance = r.unwrap_or(p.rendered_tolerance);
+        }
         if let Some(floor) = self.region_floor {
             p.lift = floor.map(|floor| crate::train::lift::LiftConfig { floor, ..Default::default() });
         }

@@ -133,8 +133,9 @@ pub(super) struct Flags {
     pub(super) region_vote: Option<(f32, f32)>,
     /// `--region-dilate N`: cells the voted change region grows by.
     pub(super) region_dilate: Option<u32>,
-    /// `--change-tolerance T`: colour difference above which a scene pixel changed.
-    pub(super) change_tolerance: Option<f32>,
+    /// `--change-tolerance T[,R]`: colour difference above which a scene pixel changed
+    /// (against the rendered background: R).
+    pub(super) change_tolerance: Option<(f32, Option<f32>)>,
     pub(super) exposure_correction: Option<bool>,
     pub(super) pose_registration: Option<bool>,
     pub(super) registration_passes: Option<u32>,
@@ -266,7 +267,20 @@ impl Flags {
                     _ => return Err(err(format!("--region-dilate: '{s}' is not a whole number of cells in 0..=4"))),
                 }
             }
-            "change-tolerance" => self.change_tolerance = Some(finite(p, name, 0.0, 0.5)?),
+            "change-tolerance" => {
+                let s = text(p, name)?;
+                let v: Vec<Option<f32>> =
+                    s.split(',').map(|x| x.parse::<f32>().ok().filter(|t| *t > 0.0 && *t <= 0.5)).collect();
+                self.change_tolerance = match v[..] {
+                    [Some(t)] => Some((t, None)),
+                    [Some(t), Some(r)] => Some((t, Some(r))),
+                    _ => {
+                        return Err(err(format!(
+                            "--change-tolerance: '{s}' is not T or T,R, colour differences in (0, 0.5]"
+                        )))
+                    }
+                };
+            }
             "resume" => self.resume = Some(path(p, name)?),
             "exposure-correction" => self.exposure_correction = Some(choice(p, name, &["on", "off"])? == "on"),
             "pose-registration" => self.pose_registration = Some(choice(p, name, &["on", "off"])? == "on"),

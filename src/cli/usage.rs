@@ -8,7 +8,7 @@ commands:
          [--split NAME] [--csv FILE] [--lr LR] [--distortion L] [--near-grad D] [--fixed-background] [--background BG_MODEL [--mix mixnet|sum]
          [--density-mix raw|activated] [--mixnet-encoding own|shared] [--prior all|none|warm-start,region,focus,beta,reach,solid]
          [--background-data BG_DIR] [--beta U,E] [--beta-margin N] [--region-floor S|off]
-         [--focus-share F] [--region-vote V,S] [--region-dilate N] [--change-tolerance T] [--frozen-stride N] [--frozen-tail T] [--frozen-coarse T,N|off] [--ray-pool N] [--exposure-correction on|off]
+         [--focus-share F] [--region-vote V,S] [--region-dilate N] [--change-tolerance T[,R]] [--frozen-stride N] [--frozen-tail T] [--frozen-coarse T,N|off] [--ray-pool N] [--exposure-correction on|off]
          [--pose-registration on|off]] [--pose-registration on [--registration-passes N]]
          [--image-gains on|off] [--error-map S|off] [--pixel-jitter on|off] [--pixel-rays K] [--checkpoint-every N]
          [--scene-views N]
@@ -50,7 +50,7 @@ commands:
   compare --background DIR --scene DIR [--scene DIR ...] --out DIR [--background-model MODEL]
          [--methods dex,finetune,residual-paper,residual,...] [--scene-views N] [--steps N] [--rays N]
          [--log2t N] [--seed S] [--eval-every N] [--m M | --m-raw S] [--m-sweep M,M,...] [--threads N]
-         [--beta U,E] [--beta-margin N] [--region-floor S|off] [--focus-share F] [--region-vote V,S] [--region-dilate N] [--change-tolerance T]
+         [--beta U,E] [--beta-margin N] [--region-floor S|off] [--focus-share F] [--region-vote V,S] [--region-dilate N] [--change-tolerance T[,R]]
          [--frozen-stride N] [--frozen-tail T] [--frozen-coarse T,N|off] [--ray-pool N] [--exposure-correction on|off] [--pose-registration on|off]
          [--image-gains on|off] [--pixel-jitter on|off] [--pixel-rays K]
          (--m-sweep: also score the final models at these σ thresholds, default 3,10,20,40;
@@ -63,7 +63,8 @@ commands:
          at least V of those see a change there, default 0.5,0.25;
          --region-dilate: cells the voted region grows by, default 1;
          --change-tolerance: colour difference (0-1, of 3x3-filtered colours) above which a
-         scene pixel changed, default 0.05;
+         scene pixel changed against a background image at its pose (T, default 0.03; 0.05 for
+         noisy captures) and against the rendered background (R, default 0.05);
          --frozen-stride: outside the change region one training sample stands for N marching
          steps of the frozen background, default 1 (every step);
          --frozen-tail: a training ray past the change region stops once its transmittance is
