@@ -199,13 +199,7 @@ impl Flags {
                     _ => return Err(err(format!("--beta: '{s}' is not two weights U,E in [0, 1e6]"))),
                 }
             }
-            "beta-margin" => {
-                let s = text(p, name)?;
-                self.beta_margin = match s.parse::<u32>() {
-                    Ok(n) if n <= 16 => Some(n),
-                    _ => return Err(err(format!("--beta-margin: '{s}' is not a whole number of pixels in 0..=16"))),
-                }
-            }
+            "beta-margin" => self.beta_margin = Some(whole(p, name, 16, "pixels")?),
             "region-floor" => {
                 let s = text(p, name)?;
                 self.region_floor = Some(match s.as_str() {
@@ -260,13 +254,7 @@ impl Flags {
                     _ => return Err(err(format!("--region-vote: '{s}' is not two shares V,S in [0, 1]"))),
                 }
             }
-            "region-dilate" => {
-                let s = text(p, name)?;
-                self.region_dilate = match s.parse::<u32>() {
-                    Ok(n) if n <= 4 => Some(n),
-                    _ => return Err(err(format!("--region-dilate: '{s}' is not a whole number of cells in 0..=4"))),
-                }
-            }
+            "region-dilate" => self.region_dilate = Some(whole(p, name, 4, "cells")?),
             "change-tolerance" => {
                 let s = text(p, name)?;
                 let v: Vec<Option<f32>> =
@@ -563,6 +551,15 @@ fn path(p: &mut lexopt::Parser, name: &str) -> Result<PathBuf, CliError> {
 }
 
 /// A finite number in `(lo, hi]`.
+/// A whole number of `unit` in `0..=max`.
+fn whole(p: &mut lexopt::Parser, name: &str, max: u32, unit: &str) -> Result<u32, CliError> {
+    let s = text(p, name)?;
+    match s.parse::<u32>() {
+        Ok(n) if n <= max => Ok(n),
+        _ => Err(err(format!("--{name}: '{s}' is not a whole number of {unit} in 0..={max}"))),
+    }
+}
+
 fn finite(p: &mut lexopt::Parser, name: &str, lo: f32, hi: f32) -> Result<f32, CliError> {
     let v: f32 = number(p, name)?;
     if !(v.is_finite() && v > lo && v <= hi) {
