@@ -62,7 +62,7 @@ for name in names:
         mean = f"{sum(c[0] for c in cells) / 3:.4f} / {sum(c[1] for c in cells) / 3:.4f}"
         print(f"| {name}, seed {seed} | " + " | ".join(row) + f" | {mean} |")
 print()
-complete = lambda name: {s for s in range(100) if all((sc, name, s) in runs for sc in SCENES)}
+complete = lambda name: {s for (_, n, s) in runs if n == name and all((sc, name, s) in runs for sc in SCENES)}
 for name in names:
     seeds = sorted(complete(name) & complete(base))
     if not seeds:

@@ -190,11 +190,7 @@ impl Flags {
             }
             "beta" => {
                 let s = text(p, name)?;
-                let v: Vec<Option<f32>> = s
-                    .split(',')
-                    .map(|x| x.parse::<f32>().ok().filter(|v| v.is_finite() && (0.0..=1e6).contains(v)))
-                    .collect();
-                match v[..] {
+                match numbers(&s, |v| (0.0..=1e6).contains(&v))[..] {
                     [Some(u), Some(e)] => self.beta = Some((u, e)),
                     _ => return Err(err(format!("--beta: '{s}' is not two weights U,E in [0, 1e6]"))),
                 }
@@ -247,9 +243,7 @@ impl Flags {
             }
             "region-vote" => {
                 let s = text(p, name)?;
-                let v: Vec<Option<f32>> =
-                    s.split(',').map(|x| x.parse::<f32>().ok().filter(|v| (0.0..=1.0).contains(v))).collect();
-                match v[..] {
+                match numbers(&s, |v| (0.0..=1.0).contains(&v))[..] {
                     [Some(vote), Some(seen)] => self.region_vote = Some((vote, seen)),
                     _ => return Err(err(format!("--region-vote: '{s}' is not two shares V,S in [0, 1]"))),
                 }
@@ -257,9 +251,7 @@ impl Flags {
             "region-dilate" => self.region_dilate = Some(whole(p, name, 4, "cells")?),
             "change-tolerance" => {
                 let s = text(p, name)?;
-                let v: Vec<Option<f32>> =
-                    s.split(',').map(|x| x.parse::<f32>().ok().filter(|t| *t > 0.0 && *t <= 0.5)).collect();
-                self.change_tolerance = match v[..] {
+                self.change_tolerance = match numbers(&s, |t| t > 0.0 && t <= 0.5)[..] {
                     [Some(t)] => Some((t, None)),
                     [Some(t), Some(r)] => Some((t, Some(r))),
                     _ => {
@@ -550,7 +542,11 @@ fn path(p: &mut lexopt::Parser, name: &str) -> Result<PathBuf, CliError> {
     Ok(PathBuf::from(raw))
 }
 
-/// A finite number in `(lo, hi]`.
+/// A comma-separated list of numbers, each `None` where it does not parse or fails `ok`.
+fn numbers(s: &str, ok: impl Fn(f32) -> bool) -> Vec<Option<f32>> {
+    s.split(',').map(|x| x.parse::<f32>().ok().filter(|&v| v.is_finite() && ok(v))).collect()
+}
+
 /// A whole number of `unit` in `0..=max`.
 fn whole(p: &mut lexopt::Parser, name: &str, max: u32, unit: &str) -> Result<u32, CliError> {
     let s = text(p, name)?;
@@ -560,6 +556,7 @@ fn whole(p: &mut lexopt::Parser, name: &str, max: u32, unit: &str) -> Result<u32
     }
 }
 
+/// A finite number in `(lo, hi]`.
 fn finite(p: &mut lexopt::Parser, name: &str, lo: f32, hi: f32) -> Result<f32, CliError> {
     let v: f32 = number(p, name)?;
     if !(v.is_finite() && v > lo && v <= hi) {

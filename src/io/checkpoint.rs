@@ -398,7 +398,6 @@ pub fn parse_train_config(v: &Value, occupancy: OccupancyConfig) -> Result<Train
         },
         // Added later: absent means off (how they were trained).
         frozen_tail: optional(v, "frozen_tail", 0.5)?,
-        // Added later: absent means off (how they were trained).
         frozen_coarse: optional(v, "frozen_coarse", 1.0)?,
         frozen_coarse_stride: match v.get("frozen_coarse_stride") {
             None => 1,
