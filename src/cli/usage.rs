@@ -17,7 +17,7 @@ commands:
          by default background-aware (--prior all: start at the background, a change region voted
          from change maps against BG_DIR's images at the same poses or the rendered background,
          half the rays from changed pixels and the rest from pixels whose ray crosses the region,
-         the β regularisers at --beta's weights, default 0.02,0:
+         the β regularisers at --beta's weights, default 0.02,0.005:
          penalty on unchanged rays, entropy; --prior none: the paper's Residual-NeRF).
          A NeRF with --pose-registration on (for a background whose poses came from a robot
          arm): a first NeRF, every image's pose registered against it, N times (default 1),
