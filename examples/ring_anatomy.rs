@@ -13,8 +13,9 @@
 use glam::Vec3;
 use residual_nerf::data::dataset::{Dataset, LoadOptions};
 use residual_nerf::eval::NEAR_LIMIT;
+use residual_nerf::field::mix::{mix_forward, MixInput};
 use residual_nerf::field::mixnet::{MixnetContext, MixnetEncoding};
-use residual_nerf::field::residual::{ResidualContext, ResidualModel};
+use residual_nerf::field::residual::ResidualModel;
 use residual_nerf::field::FieldContext;
 use residual_nerf::geometry::camera::pixel_ray;
 use residual_nerf::io::{load_model, LoadedModel};
@@ -26,29 +27,23 @@ use std::path::Path;
 /// β bins' upper edges.
 const BINS: [f32; 5] = [0.01, 0.1, 0.5, 0.9, 1.0];
 
-/// The threshold hits of one kind of pixel (world points).
-#[derive(Default)]
-struct Hits {
-    points: Vec<Vec3>,
-}
-
-/// The three parts of the mix at each point.
+/// The three parts of the mix at each point, and the mixed σ they give: (ln σ_bg, ln σ_res, β,
+/// σ). β is 0 outside the change region, where the field is the background's.
 fn parts(isa: Isa, model: &ResidualModel, points: &[Vec3]) -> Vec<(f32, f32, f32, f32)> {
     let f = &model.field;
     let n = points.len();
-    let (mut s_bg, mut s_res, mut logit, mut mixed) = (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    let (mut s_bg, mut s_res, mut logit) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
     let bg = &f.background;
     bg.field.density(isa, &bg.params, points, &mut s_bg, &mut FieldContext::default());
     f.residual().density(isa, &model.params.residual, points, &mut s_res, &mut FieldContext::default());
     f.mixnet().forward(isa, &model.params.mixnet, points, None, &mut logit, &mut MixnetContext::default());
-    f.density(isa, &model.params, points, &mut mixed, &mut ResidualContext::default());
     (0..n)
         .map(|i| {
-            // β as the mix used it: 0 outside the change region (where the field is the
-            // background's, so the mixed σ equals the background's).
             let inside = f.region().is_none_or(|r| r.contains(points[i]));
-            let beta = if inside { 1.0 / (1.0 + (-logit[i]).exp()) } else { 0.0 };
-            (s_bg[i], s_res[i], beta, mixed[i])
+            let m = if inside { logit[i] } else { f32::NEG_INFINITY };
+            let x = MixInput { s_bg: s_bg[i], c_bg: [0.0; 3], s_res: s_res[i], c_res: [0.0; 3], m };
+            let out = mix_forward(f.kind(), &x);
+            (s_bg[i], s_res[i], out.beta, out.sigma)
         })
         .collect()
 }
@@ -61,14 +56,12 @@ fn median(mut v: Vec<f32>) -> f32 {
     v[v.len() / 2]
 }
 
-fn report(isa: Isa, model: &ResidualModel, name: &str, hits: &Hits) {
-    let p = parts(isa, model, &hits.points);
-    let betas: Vec<f32> = p.iter().map(|x| x.2).collect();
-    let q = |f: f64| {
-        let mut b = betas.clone();
-        b.sort_by(f32::total_cmp);
-        b.get(((b.len() as f64 - 1.0) * f) as usize).copied().unwrap_or(f32::NAN)
-    };
+/// The mix's parts at `hits` (the threshold hits of one kind of pixel, world points), by β.
+fn report(isa: Isa, model: &ResidualModel, name: &str, hits: &[Vec3]) {
+    let p = parts(isa, model, hits);
+    let mut betas: Vec<f32> = p.iter().map(|x| x.2).collect();
+    betas.sort_by(f32::total_cmp);
+    let q = |f: f64| betas.get(((betas.len() as f64 - 1.0) * f) as usize).copied().unwrap_or(f32::NAN);
     println!(
         "{name}: {} hits; β at the 10th / 50th / 90th percentile and the largest: {:.3} / {:.3} / {:.3} / {:.3}",
         p.len(),
@@ -105,12 +98,12 @@ fn main() -> Result<(), String> {
     let LoadedModel::Residual(model) = load_model(Path::new(model)).map_err(|e| e.to_string())? else {
         return Err(format!("{model}: not a residual model"));
     };
-    if model.field.mixnet_encoding() == MixnetEncoding::Shared {
-        return Err("ring_anatomy: a Mixnet on the residual's features is not supported".into());
+    if model.field.mixnet_encoding() == MixnetEncoding::Shared || model.field.solid_background().is_some() {
+        return Err("ring_anatomy: a Mixnet on the residual's features or colour-only mixing is not supported".into());
     }
     let scene = Scene::from(&*model);
     let mut renderer = ViewRenderer::new();
-    let (mut ring, mut object) = (Hits::default(), Hits::default());
+    let (mut ring, mut object) = (Vec::new(), Vec::new());
     for (v, f) in test.views.iter().zip(&test.frames) {
         let k = &v.intrinsics;
         let (Some(truth), Some(crop), Some(mask)) = (&f.depth, f.crop, f.mask.as_deref()) else { continue };
@@ -127,13 +120,13 @@ fn main() -> Result<(), String> {
                 let ray = pixel_ray(k, &v.pose, x as u32, y as u32);
                 let point = ray.at(ray.z_to_range(z[p]));
                 if mask[p] {
-                    object.points.push(point);
+                    object.push(point);
                     continue;
                 }
                 let next = (y.saturating_sub(1)..(y + 2).min(h))
                     .any(|yy| (x.saturating_sub(1)..(x + 2).min(w)).any(|xx| mask[yy * w + xx]));
                 if next && z[p] < t - 0.02 {
-                    ring.points.push(point);
+                    ring.push(point);
                 }
             }
         }

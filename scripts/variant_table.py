@@ -4,8 +4,13 @@
 evaluated per ray at the last step, the three-scene means, and the means over the seeds that
 every setting ran; then each run's change against the same scene and seed under BASE (default
 "default"). Runs of other directories in the same layout can be added as further arguments;
---names keeps only the settings named (and BASE).
-usage: scripts/variant_table.py OUT [OUT2 ...] [--base NAME] [--names NAME,NAME,...]"""
+--names keeps only the settings named (and BASE); --scenes the scenes the means are over
+(default glass_up,bottle,wine_flat); --dex DIR adds each setting's ratio to Dex-NeRF's final
+object MAE and near-crop RMSE (the last `dex` row of DIR/SCENE_seedS_curves.csv, an `rnerf
+compare` curves file) on the scene means, per seed and the mean of the seeds' ratios.
+usage: scripts/variant_table.py OUT [OUT2 ...] [--base NAME] [--names NAME,NAME,...]
+         [--scenes SCENE,SCENE,...] [--dex DIR]"""
+import csv
 import glob
 import json
 import os
@@ -24,7 +29,8 @@ def option(flag, default):
 
 base = option("--base", "default")
 only = option("--names", None)
-SCENES = ("glass_up", "bottle", "wine_flat")
+SCENES = tuple(option("--scenes", "glass_up,bottle,wine_flat").split(","))
+dex_dir = option("--dex", None)
 runs = {}
 for out in args:
     for f in glob.glob(os.path.join(out, "*.eval.json")):
@@ -59,7 +65,7 @@ for name in names:
             continue
         cells = [runs[(sc, name, seed)] for sc in SCENES]
         row = [f"{o:.4f} / {n:.4f}; {k[0]} / {k[1]}" for o, n, k, _ in cells]
-        mean = f"{sum(c[0] for c in cells) / 3:.4f} / {sum(c[1] for c in cells) / 3:.4f}"
+        mean = f"{sum(c[0] for c in cells) / len(SCENES):.4f} / {sum(c[1] for c in cells) / len(SCENES):.4f}"
         print(f"| {name}, seed {seed} | " + " | ".join(row) + f" | {mean} |")
 print()
 complete = lambda name: {s for (_, n, s) in runs if n == name and all((sc, name, s) in runs for sc in SCENES)}
@@ -67,9 +73,21 @@ for name in names:
     seeds = sorted(complete(name) & complete(base))
     if not seeds:
         continue
-    o = sum(runs[(sc, name, s)][0] for sc in SCENES for s in seeds) / (3 * len(seeds))
-    n = sum(runs[(sc, name, s)][1] for sc in SCENES for s in seeds) / (3 * len(seeds))
+    o = sum(runs[(sc, name, s)][0] for sc in SCENES for s in seeds) / (len(SCENES) * len(seeds))
+    n = sum(runs[(sc, name, s)][1] for sc in SCENES for s in seeds) / (len(SCENES) * len(seeds))
     print(f"{name}: mean over seeds {seeds}: object MAE {o:.4f} m, near-crop RMSE {n:.4f} m")
+    if dex_dir:
+        def dex(scene, seed):
+            rows = [r for r in csv.DictReader(open(os.path.join(dex_dir, f"{scene}_seed{seed}_curves.csv"))) if r["method"] == "dex"]
+            return float(rows[-1]["object_mae"]), float(rows[-1]["near_rmse"])
+        ratios = []
+        for s_ in seeds:
+            d = [dex(sc, s_) for sc in SCENES]
+            mine = [runs[(sc, name, s_)] for sc in SCENES]
+            ratios.append((sum(m[0] for m in mine) / sum(x[0] for x in d), sum(m[1] for m in mine) / sum(x[1] for x in d)))
+        per = ", ".join(f"{a:.2f} / {b:.2f}" for a, b in ratios)
+        mo, mn = (sum(r[i] for r in ratios) / len(ratios) for i in (0, 1))
+        print(f"  / Dex-NeRF (object / near crop): seeds {per}; mean {mo:.2f}x / {mn:.2f}x")
 print()
 for (scene, name, seed), (o, n, _, t) in sorted(runs.items()):
     b = runs.get((scene, base, seed))
