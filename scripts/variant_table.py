@@ -7,9 +7,10 @@ every setting ran; then each run's change against the same scene and seed under 
 --names keeps only the settings named (and BASE); --scenes the scenes the means are over
 (default glass_up,bottle,wine_flat); --dex DIR adds each setting's ratio to Dex-NeRF's final
 object MAE and near-crop RMSE (the last `dex` row of DIR/SCENE_seedS_curves.csv, an `rnerf
-compare` curves file) on the scene means, per seed and the mean of the seeds' ratios.
+compare` curves file) on the scene means, per seed and the mean of the seeds' ratios; with
+--dex-views N, Dex-NeRF's N-view runs (DIR/SCENE_viewsN_seedS_curves.csv) instead.
 usage: scripts/variant_table.py OUT [OUT2 ...] [--base NAME] [--names NAME,NAME,...]
-         [--scenes SCENE,SCENE,...] [--dex DIR]"""
+         [--scenes SCENE,SCENE,...] [--dex DIR [--dex-views N]]"""
 import csv
 import glob
 import json
@@ -31,6 +32,8 @@ base = option("--base", "default")
 only = option("--names", None)
 SCENES = tuple(option("--scenes", "glass_up,bottle,wine_flat").split(","))
 dex_dir = option("--dex", None)
+dex_views = option("--dex-views", None)
+dex_tag = f"views{dex_views}_" if dex_views else ""
 runs = {}
 for out in args:
     for f in glob.glob(os.path.join(out, "*.eval.json")):
@@ -78,7 +81,7 @@ for name in names:
     print(f"{name}: mean over seeds {seeds}: object MAE {o:.4f} m, near-crop RMSE {n:.4f} m")
     if dex_dir:
         def dex(scene, seed):
-            rows = [r for r in csv.DictReader(open(os.path.join(dex_dir, f"{scene}_seed{seed}_curves.csv"))) if r["method"] == "dex"]
+            rows = [r for r in csv.DictReader(open(os.path.join(dex_dir, f"{scene}_{dex_tag}seed{seed}_curves.csv"))) if r["method"] == "dex"]
             return float(rows[-1]["object_mae"]), float(rows[-1]["near_rmse"])
         ratios = []
         for s_ in seeds:

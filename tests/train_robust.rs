@@ -164,13 +164,12 @@ fn a_resumed_residual_run_equals_an_uninterrupted_one() {
     }
 }
 
-/// The background-aware method's start (warm-started, a change region pinned in a grid frozen
-/// outside it) with the ray pool on: the resumed run refills the pool at its step and ends
-/// with the same bits.
-#[test]
-fn a_resumed_run_with_the_ray_pool_equals_an_uninterrupted_one() {
+/// The background-aware method's start over `scene`: warm-started, a change region pinned in a
+/// grid frozen outside it, focus and reach pixels and the β penalty.
+fn aware_start(
+    scene: &residual_nerf::data::synth::SynthScene,
+) -> (ResidualField, <ResidualField as Model>::Params, OccupancyGrid, TrainConfig) {
     use residual_nerf::geometry::ChangeRegion;
-    let scene = workspace::workspace(16, 8, 0.5, true);
     let bg_field = NerfField::new(field_config(scene.aabb));
     let mut rng = Rng::new(3);
     let mut params = bg_field.init_params(&mut rng);
@@ -200,6 +199,15 @@ fn a_resumed_run_with_the_ray_pool_equals_an_uninterrupted_one() {
         spared: None,
     });
     cfg.beta.unchanged = 0.02;
+    (field, params, occupancy, cfg)
+}
+
+/// The background-aware start with the ray pool on: the resumed run refills the pool at its
+/// step and ends with the same bits.
+#[test]
+fn a_resumed_run_with_the_ray_pool_equals_an_uninterrupted_one() {
+    let scene = workspace::workspace(16, 8, 0.5, true);
+    let (field, params, occupancy, mut cfg) = aware_start(&scene);
     cfg.ray_pool = 4;
     // The pool is on: it draws other rays than fresh sampling does.
     let isa = Isa::detect();
@@ -213,6 +221,33 @@ fn a_resumed_run_with_the_ray_pool_equals_an_uninterrupted_one() {
     assert!(ends(&cfg) != ends(&fresh), "the pooled run trained as the fresh one");
     let start = Some((params, occupancy));
     resume_matches(&field, scene.aabb, &scene.views, &scratch("pool"), &cfg, start, |m| match m {
+        LoadedModel::Residual(r) => (r.params, r.occupancy),
+        LoadedModel::Nerf(_) => panic!("saved a residual model"),
+    });
+}
+
+/// The background-aware start with the photo tail (its background colours ride in the
+/// checkpoint): the resumed run ends with the same bits, and the colours change the run.
+#[test]
+fn a_resumed_run_with_the_photo_tail_equals_an_uninterrupted_one() {
+    use residual_nerf::train::prior::BackgroundColours;
+    let scene = workspace::workspace(16, 8, 0.5, true);
+    let (field, params, occupancy, mut cfg) = aware_start(&scene);
+    let dimmed: Vec<Vec<[f32; 3]>> =
+        scene.views.iter().map(|v| v.rgb.iter().map(|c| c.map(|x| 0.8 * x + 0.1)).collect()).collect();
+    cfg.behind = Some(std::sync::Arc::new(BackgroundColours::new(&dimmed)));
+    assert!(cfg.photo_tail, "the photo tail is on by default");
+    let isa = Isa::detect();
+    let ends = |cfg: &TrainConfig| {
+        let mut t = Trainer::starting_at(isa, &field, &scene.views, cfg, params.clone(), occupancy.clone());
+        run_to_end(&mut t);
+        t.into_state().params
+    };
+    let mut without = cfg.clone();
+    without.behind = None;
+    assert!(ends(&cfg) != ends(&without), "the photo tail changed nothing");
+    let start = Some((params, occupancy));
+    resume_matches(&field, scene.aabb, &scene.views, &scratch("photo"), &cfg, start, |m| match m {
         LoadedModel::Residual(r) => (r.params, r.occupancy),
         LoadedModel::Nerf(_) => panic!("saved a residual model"),
     });

@@ -105,6 +105,7 @@ pub(super) fn run(a: &crate::cli::CompareArgs) -> Result<(), String> {
     train.ray_pool = a.ray_pool.unwrap_or(train.ray_pool);
     train.image_gains = a.image_gains;
     train.pixel_jitter = a.pixel_jitter.unwrap_or(train.pixel_jitter);
+    train.photo_tail = a.photo_tail.unwrap_or(train.photo_tail);
     train.pixel_rays = a.pixel_rays.unwrap_or(train.pixel_rays);
     let mut cfg = CompareConfig::new(train, NerfConfig { grid, aabb });
     cfg.eval_every = a.eval_every.unwrap_or(cfg.eval_every);

@@ -148,6 +148,7 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
     cfg.image_gains = a.image_gains;
     cfg.error_map = a.error_map;
     cfg.pixel_jitter = a.pixel_jitter.unwrap_or(cfg.pixel_jitter);
+    cfg.photo_tail = a.photo_tail.unwrap_or(cfg.photo_tail);
     cfg.pixel_rays = a.pixel_rays.unwrap_or(cfg.pixel_rays);
     let isa = Isa::detect();
     describe_run(&cfg, field.grid.log2_table_size, isa);
@@ -218,6 +219,7 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
             let config = ResidualConfig { residual: field, kind, mixnet };
             let start = residual_start(isa, &bg, config, hints, prior.as_ref(), &cfg, &pcfg);
             cfg.focus = start.focus;
+            cfg.behind = start.behind;
             cfg.beta = start.beta;
             if let Some(l) = start.lift {
                 eprintln!("rnerf train: {l}");
@@ -376,6 +378,7 @@ fn run_metadata(
         ("train_image_gains", cfg.image_gains.map_or("off".into(), |l| format!("on (prior {l})"))),
         ("train_error_map", cfg.error_map.map_or("off".into(), |s| format!("share {s}"))),
         ("train_pixel_jitter", cfg.pixel_jitter.to_string()),
+        ("train_photo_tail", cfg.photo_tail.to_string()),
         ("train_pixel_rays", cfg.pixel_rays.to_string()),
         ("train_data", a.data.display().to_string()),
         ("train_split", a.split.clone()),

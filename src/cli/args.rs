@@ -154,6 +154,9 @@ pub struct TrainArgs {
     /// Past a residual model's change region, the transmittance below which a training ray's
     /// frozen samples go on N lattice steps each (`--frozen-coarse T,N`; `off`: (0, 1)).
     pub frozen_coarse: Option<(f32, u32)>,
+    /// A residual model's training rays stop where they leave the change region, the light
+    /// behind read off the background image (`--photo-tail on|off`); `None`: the default.
+    pub photo_tail: Option<bool>,
     /// Times each pooled training ray of a residual model is drawn (`--ray-pool N`; 0 or 1:
     /// every ray fresh).
     pub ray_pool: Option<u32>,
@@ -217,6 +220,9 @@ pub struct CompareArgs {
     /// Past a residual model's change region, the transmittance below which a training ray's
     /// frozen samples go on N lattice steps each (`--frozen-coarse T,N`; `off`: (0, 1)).
     pub frozen_coarse: Option<(f32, u32)>,
+    /// A residual model's training rays stop where they leave the change region, the light
+    /// behind read off the background image (`--photo-tail on|off`); `None`: the default.
+    pub photo_tail: Option<bool>,
     /// Times each pooled training ray of a residual model is drawn (`--ray-pool N`; 0 or 1:
     /// every ray fresh).
     pub ray_pool: Option<u32>,

@@ -53,6 +53,7 @@ pub(super) const FLAGS: &[Flag] = &[
     Flag { name: "frozen-stride", commands: &["train", "compare"], setting: true },
     Flag { name: "frozen-tail", commands: &["train", "compare"], setting: true },
     Flag { name: "frozen-coarse", commands: &["train", "compare"], setting: true },
+    Flag { name: "photo-tail", commands: &["train", "compare"], setting: true },
     Flag { name: "ray-pool", commands: &["train", "compare"], setting: true },
     Flag { name: "image-gains", commands: &["train", "compare"], setting: true },
     Flag { name: "error-map", commands: &["train"], setting: true },
@@ -142,6 +143,8 @@ pub(super) struct Flags {
     pub(super) frozen_stride: Option<u32>,
     pub(super) frozen_tail: Option<f32>,
     pub(super) frozen_coarse: Option<(f32, u32)>,
+    /// `--photo-tail on|off`.
+    pub(super) photo_tail: Option<bool>,
     pub(super) ray_pool: Option<u32>,
     /// `--image-gains on`: the identity prior's weight; off or not given: `None`.
     pub(super) image_gains: Option<f32>,
@@ -269,6 +272,7 @@ impl Flags {
                     (choice(p, name, &["on", "off"])? == "on").then_some(crate::train::trainer::GAIN_PRIOR)
             }
             "pixel-jitter" => self.pixel_jitter = Some(choice(p, name, &["on", "off"])? == "on"),
+            "photo-tail" => self.photo_tail = Some(choice(p, name, &["on", "off"])? == "on"),
             "pixel-rays" => {
                 let max = crate::train::trainer::MAX_PIXEL_RAYS;
                 let n: u32 = text(p, name)?.parse().ok().filter(|n| (1..=max).contains(n)).ok_or_else(|| {

@@ -8,8 +8,8 @@ commands:
          [--split NAME] [--csv FILE] [--lr LR] [--distortion L] [--near-grad D] [--fixed-background] [--background BG_MODEL [--mix mixnet|sum]
          [--density-mix raw|activated] [--mixnet-encoding own|shared] [--prior all|none|warm-start,region,focus,beta,reach,solid]
          [--background-data BG_DIR] [--beta U,E] [--beta-margin N] [--region-floor S|off]
-         [--focus-share F] [--region-vote V,S] [--region-dilate N] [--change-tolerance T[,R]] [--frozen-stride N] [--frozen-tail T] [--frozen-coarse T,N|off] [--ray-pool N] [--exposure-correction on|off]
-         [--pose-registration on|off]] [--pose-registration on [--registration-passes N]]
+         [--focus-share F] [--region-vote V,S] [--region-dilate N] [--change-tolerance T[,R]] [--frozen-stride N] [--frozen-tail T] [--frozen-coarse T,N|off] [--photo-tail on|off] [--ray-pool N]
+         [--exposure-correction on|off] [--pose-registration on|off]] [--pose-registration on [--registration-passes N]]
          [--image-gains on|off] [--error-map S|off] [--pixel-jitter on|off] [--pixel-rays K] [--checkpoint-every N]
          [--scene-views N]
          train a NeRF on DIR's transforms_<split>.json (default split: train); with --background,
@@ -51,7 +51,7 @@ commands:
          [--methods dex,finetune,residual-paper,residual,...] [--scene-views N] [--steps N] [--rays N]
          [--log2t N] [--seed S] [--eval-every N] [--m M | --m-raw S] [--m-sweep M,M,...] [--threads N]
          [--beta U,E] [--beta-margin N] [--region-floor S|off] [--focus-share F] [--region-vote V,S] [--region-dilate N] [--change-tolerance T[,R]]
-         [--frozen-stride N] [--frozen-tail T] [--frozen-coarse T,N|off] [--ray-pool N] [--exposure-correction on|off] [--pose-registration on|off]
+         [--frozen-stride N] [--frozen-tail T] [--frozen-coarse T,N|off] [--photo-tail on|off] [--ray-pool N] [--exposure-correction on|off] [--pose-registration on|off]
          [--image-gains on|off] [--pixel-jitter on|off] [--pixel-rays K]
          (--m-sweep: also score the final models at these σ thresholds, default 3,10,20,40;
          --beta: weights of the background-aware methods' β penalty and entropy;
@@ -72,6 +72,9 @@ commands:
          --frozen-coarse: past the change region, once a training ray's transmittance is below
          T its frozen samples each stand for N marching steps (0.5,4 trains 9-20% faster and
          loses 1-5% of the near crop), default off;
+         --photo-tail: a training ray stops where it leaves the change region, the light behind
+         read off the background's image of its pixel (the image at the same pose, else the
+         background rendered there), default on;
          --ray-pool: the background-aware residual draws each training ray not taken from the
          changed pixels N times on average, its background evaluated once, default 0 (every
          ray fresh);

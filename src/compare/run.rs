@@ -190,6 +190,7 @@ pub fn run_scene(
                     let start = residual_start(isa, background, config, hints, p, &cfg.train, &cfg.prior);
                     let mut mcfg = cfg.clone();
                     mcfg.train.focus = start.focus;
+                    mcfg.train.behind = start.behind;
                     mcfg.train.beta = start.beta;
                     if let Some(l) = start.lift {
                         eprintln!("{name}: {l}");

@@ -186,6 +186,10 @@ pub trait FrozenOutside<P, C>: Sync {
         rgb: &mut [[f32; 3]],
         c: &mut C,
     );
+    /// The frozen NeRF's own activated density and colour (the mix at β = 0) of the kept rows
+    /// of the last [`Model::chunk_colour`], into `sigma` and `rgb`: what the frozen field alone
+    /// puts at those samples, inside the region too.
+    fn chunk_frozen(&self, c: &C, sigma: &mut Vec<f32>, rgb: &mut Vec<[f32; 3]>);
 }
 
 /// The NeRF's forward context plus the activated values backward differentiates through.

@@ -708,6 +708,16 @@ impl FrozenOutside<ResidualParams, ResidualChunk> for ResidualField {
         (o.sigma, o.rgb)
     }
 
+    fn chunk_frozen(&self, c: &ResidualChunk, sigma: &mut Vec<f32>, rgb: &mut Vec<[f32; 3]>) {
+        sigma.clear();
+        rgb.clear();
+        for x in &c.inputs {
+            let (s, c) = self.outside(x.s_bg, x.c_bg);
+            sigma.push(s);
+            rgb.push(c);
+        }
+    }
+
     fn chunk_density_over(
         &self,
         isa: Isa,

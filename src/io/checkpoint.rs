@@ -10,6 +10,8 @@
 //! - with a focus ([`TrainConfig::focus`]): `train.focus.pixels`, and when present
 //!   `train.focus.reach` and `train.focus.spared`, f32 `[2n]` (view, pixel) pairs; metadata
 //!   `train_focus_share`;
+//! - with the photo tail's background colours ([`TrainConfig::behind`]): `train.behind.{v}` f32
+//!   `[3n]`, training view `v`'s background colours (r, g, b per pixel);
 //! - with the error map ([`TrainConfig::error_map`]): `train.error_map` f32 `[tiles]`, its tile
 //!   values ([`crate::train::error_map`]);
 //! - metadata `checkpoint`: `{"step", "skipped", "seconds", "adam_steps": [..], "fingerprint",
@@ -164,6 +166,12 @@ pub fn save_checkpoint<M: ModelFile>(
         }
         w.meta("train_focus_share", &f.share.to_string());
     }
+    if let Some(behind) = &config.behind {
+        for v in 0..behind.len() {
+            let flat: Vec<f32> = (0..behind.pixels(v)).flat_map(|p| behind.get(v, p)).collect();
+            w.tensor(&format!("train.behind.{v}"), vec![flat.len()], &flat).map_err(at)?;
+        }
+    }
     if let Some(values) = &state.error_map {
         w.tensor("train.error_map", vec![values.len()], values).map_err(at)?;
     }
@@ -249,6 +257,18 @@ fn read_checkpoint(r: &ModelReader, occupancy: OccupancyConfig) -> Result<Checkp
             false => None,
         };
         config.focus = Some(crate::train::trainer::Focus { share, pixels: std::sync::Arc::new(pixels), reach, spared });
+    }
+    let mut behind = Vec::new();
+    while r.shape(&format!("train.behind.{}", behind.len())).is_ok() {
+        let name = format!("train.behind.{}", behind.len());
+        let flat = flat_tensor(r, &name)?;
+        if flat.len() % 3 != 0 || flat.iter().any(|x| !(0.0..=1.0).contains(x)) {
+            return Err(format!("tensor '{name}' does not hold (r, g, b) colours in [0, 1]"));
+        }
+        behind.push(flat.chunks(3).map(|c| [c[0], c[1], c[2]]).collect::<Vec<[f32; 3]>>());
+    }
+    if !behind.is_empty() {
+        config.behind = Some(std::sync::Arc::new(crate::train::prior::BackgroundColours::new(&behind)));
     }
     if step > config.steps {
         return Err(format!("metadata 'checkpoint': step {step} is past the run's {} steps", config.steps));
@@ -339,6 +359,7 @@ pub fn train_config_json(c: &TrainConfig) -> Value {
         "beta_unchanged": c.beta.unchanged, "beta_entropy": c.beta.entropy, "beta_entropy_from": c.beta.entropy_from,
         "frozen_stride": c.frozen_stride, "image_gains": c.image_gains, "error_map": c.error_map,
         "pixel_jitter": c.pixel_jitter, "pixel_rays": c.pixel_rays, "ray_pool": c.ray_pool,
+        "photo_tail": c.photo_tail,
         "frozen_tail": c.frozen_tail, "frozen_coarse": c.frozen_coarse, "frozen_coarse_stride": c.frozen_coarse_stride,
     })
 }
@@ -398,6 +419,8 @@ pub fn parse_train_config(v: &Value, occupancy: OccupancyConfig) -> Result<Train
         },
         // Added later: absent means off (how they were trained).
         frozen_tail: optional(v, "frozen_tail", 0.5)?,
+        photo_tail: v.get("photo_tail").and_then(Value::as_bool).unwrap_or(false),
+        behind: None,
         frozen_coarse: optional(v, "frozen_coarse", 1.0)?,
         frozen_coarse_stride: match v.get("frozen_coarse_stride") {
             None => 1,

@@ -184,6 +184,7 @@ impl RayPool {
             rays.pixel.push(r.pixel);
             rays.unchanged.push(r.unchanged);
             rays.backgrounds.push(background(rng));
+            rays.behind.push([f32::NAN; 3]);
         }
     }
 
@@ -358,6 +359,7 @@ mod tests {
     use crate::geometry::ChangeRegion;
     use crate::render::OccupancyConfig;
     use crate::slots::SLOTS;
+    use crate::train::prior::BackgroundColours;
     use crate::train::step::{StepInputs, Worker};
     use crate::train::trainer::Focus;
     use std::sync::Arc;
@@ -366,13 +368,16 @@ mod tests {
     /// its centre, β penalty on, and 128 rays drawn from a pool refreshed twice; `check` gets
     /// the step's inputs, the rays and a function running them (pooled for `None`, fresh with
     /// segments of `Some(n)` samples; with a configuration) to the step's loss, kept samples and
-    /// gradients per group.
+    /// gradients per group; and a function giving each ray's colour under the background
+    /// alone (the frozen NeRF marched over the same samples to its opaque point, over the ray's
+    /// background colour).
     #[allow(clippy::type_complexity)]
     fn frozen_outside_step(
         check: impl FnOnce(
             &StepRays,
             &dyn Fn(Option<usize>, &TrainConfig, &StepRays) -> (f64, usize, Vec<Vec<f32>>),
             &TrainConfig,
+            &dyn Fn(&StepRays) -> Vec<[f32; 3]>,
         ),
     ) {
         let isa = Isa::detect();
@@ -460,7 +465,39 @@ mod tests {
             let g: Vec<Vec<f32>> = field.groups(&mut p, &grads).iter().map(|g| g.grad.to_vec()).collect();
             (loss, kept, g)
         };
-        check(&rays, &run, &cfg);
+        let background_light = |rays: &StepRays| -> Vec<[f32; 3]> {
+            let nerf = split.frozen();
+            let mut chunk = Default::default();
+            let (mut t, mut delta) = (Vec::new(), Vec::new());
+            rays.rays
+                .iter()
+                .zip(&rays.backgrounds)
+                .map(|(r, &bg)| {
+                    t.clear();
+                    delta.clear();
+                    crate::train::step::march_in_segments(
+                        &occupancy,
+                        r,
+                        (1, 1),
+                        1 << 20,
+                        &mut t,
+                        &mut delta,
+                        |_, _, _| crate::train::step::Flow::Go,
+                    );
+                    let positions: Vec<Vec3> = t.iter().map(|&t| r.at(t)).collect();
+                    let mut sigma = vec![0.0; t.len()];
+                    let mut rgb = vec![[0.0; 3]; t.len()];
+                    if !t.is_empty() {
+                        Model::chunk_density(&nerf.field, isa, &nerf.params, 0, &positions, &mut sigma, &mut chunk);
+                        let keep: Vec<u32> = (0..t.len() as u32).collect();
+                        let dirs = vec![r.dir; t.len()];
+                        Model::chunk_colour(&nerf.field, isa, &nerf.params, &keep, &dirs, &mut rgb, &mut chunk);
+                    }
+                    crate::render::composite::composite_ray(&sigma, &delta, &t, &rgb, bg).rgb
+                })
+                .collect()
+        };
+        check(&rays, &run, &cfg, &background_light);
     }
 
     /// A pooled step's loss and gradients are those of marching the same rays fresh: the runs
@@ -468,7 +505,7 @@ mod tests {
     /// the rounding.
     #[test]
     fn a_pooled_step_has_the_loss_and_gradients_of_the_same_rays_marched_fresh() {
-        frozen_outside_step(|rays, run, cfg| {
+        frozen_outside_step(|rays, run, cfg, _| {
             let (loss_p, kept_p, grads_p) = run(None, cfg, rays);
             let (loss_f, kept_f, grads_f) = run(Some(RAY_SEGMENT), cfg, rays);
             assert!(kept_p > 0 && kept_p < kept_f, "pooled rays run only their inside samples ({kept_p} of {kept_f})");
@@ -509,7 +546,7 @@ mod tests {
     /// so the tail starts biting at τ ≈ 0.1; a trained one turns opaque within a few cells.)
     #[test]
     fn the_frozen_tail_stops_rays_past_the_region_and_keeps_the_gradients() {
-        frozen_outside_step(|rays, run, cfg| {
+        frozen_outside_step(|rays, run, cfg, _| {
             let exact = run(Some(RAY_SEGMENT), cfg, rays);
             let mut off = cfg.clone();
             off.frozen_tail = 0.0;
@@ -542,13 +579,46 @@ mod tests {
         });
     }
 
+    /// The photo tail is exact when the photo is the background's own light: with each ray's
+    /// background image colour set to the background NeRF's render of that ray, stopping the
+    /// rays where they leave the region and reading the light behind off that colour gives the
+    /// loss and gradients of marching every ray to its opaque point (rounding apart), with
+    /// fewer samples kept; without colours, or with the switch off, the step is the marched one
+    /// bit for bit.
+    #[test]
+    fn the_photo_tail_reads_the_light_behind_off_the_background_image() {
+        frozen_outside_step(|rays, run, cfg, background_light| {
+            let mut exact_cfg = cfg.clone();
+            exact_cfg.frozen_tail = 0.0;
+            let exact = run(Some(RAY_SEGMENT), &exact_cfg, rays);
+            let mut photo_cfg = exact_cfg.clone();
+            photo_cfg.photo_tail = true;
+            let mut with_photo = rays.clone();
+            // Through 16-bit colours, as training holds them.
+            let light = BackgroundColours::new(&[background_light(rays)]);
+            with_photo.behind = (0..rays.rays.len()).map(|i| light.get(0, i)).collect();
+            let (loss, kept, grads) = run(Some(RAY_SEGMENT), &photo_cfg, &with_photo);
+            assert!(kept < exact.1, "the photo tail keeps fewer samples ({kept} of {})", exact.1);
+            assert!((loss - exact.0).abs() < 1e-4 * exact.0, "loss {loss} with the photo tail, {} marched", exact.0);
+            for (i, agreement) in group_agreement(&grads, &exact.2, "photo tail").into_iter().enumerate() {
+                let Some((cos, error)) = agreement else { continue };
+                assert!(cos > 0.9999 && error < 1e-2, "group {i}: cos {cos}, relative error {error}");
+            }
+            // Without background colours (or with the switch off) nothing changes, bit for bit.
+            assert_eq!(run(Some(RAY_SEGMENT), &photo_cfg, rays), exact, "no photo: the step is the marched one");
+            let mut off = exact_cfg.clone();
+            off.photo_tail = false;
+            assert_eq!(run(Some(RAY_SEGMENT), &off, &with_photo), exact, "switch off: the step is the marched one");
+        });
+    }
+
     /// The segment length is a cost, not a result: marching a ray in segments of 1, 7, 32 or
     /// 500 samples keeps the same samples, puts the same rays in each chunk (chunks close on
     /// kept samples) and gives the same loss and gradients bit for bit, with the frozen tail
     /// on (rays stop mid-segment) and off (rays run to their opaque point).
     #[test]
     fn a_step_has_the_same_bits_whatever_the_segment_length() {
-        frozen_outside_step(|rays, run, cfg| {
+        frozen_outside_step(|rays, run, cfg, _| {
             for (tau, coarse) in [(0.0f32, 0.0f32), (0.3, 0.0), (0.05, 0.5)] {
                 let mut c = cfg.clone();
                 c.frozen_tail = tau;
@@ -580,7 +650,7 @@ mod tests {
     /// coarse part covers much of each ray here.)
     #[test]
     fn the_frozen_tails_coarse_part_keeps_fewer_samples_and_moves_the_step_by_less_than_its_light() {
-        frozen_outside_step(|rays, run, cfg| {
+        frozen_outside_step(|rays, run, cfg, _| {
             let mut fine = cfg.clone();
             fine.frozen_tail = 0.01;
             let exact = run(Some(RAY_SEGMENT), &fine, rays);
@@ -613,7 +683,7 @@ mod tests {
     /// whose thirds add up to the one ray's (rounding apart) — with the β terms on.
     #[test]
     fn a_pixel_of_three_identical_rays_makes_the_step_of_one() {
-        frozen_outside_step(|rays, run, cfg| {
+        frozen_outside_step(|rays, run, cfg, _| {
             let one = run(Some(RAY_SEGMENT), cfg, rays);
             let mut three = StepRays::default();
             for i in 0..rays.rays.len() {

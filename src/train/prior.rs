@@ -178,6 +178,41 @@ impl Default for PriorConfig {
     }
 }
 
+/// Each training view's background colours at its pose, 16 bits a channel: lossless for 8- and
+/// 16-bit images (`k/255 = 257k/65535`), within 1/131070 for rendered ones.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BackgroundColours {
+    views: Vec<Vec<[u16; 3]>>,
+}
+
+impl BackgroundColours {
+    /// The colours of each view (row-major pixels, channels in [0, 1]; clamped into it).
+    pub fn new(views: &[Vec<[f32; 3]>]) -> BackgroundColours {
+        let q = |v: f32| (v.clamp(0.0, 1.0) * 65535.0).round() as u16;
+        BackgroundColours { views: views.iter().map(|v| v.iter().map(|c| c.map(q)).collect()).collect() }
+    }
+
+    /// Views held.
+    pub fn len(&self) -> usize {
+        self.views.len()
+    }
+
+    /// Whether no view is held.
+    pub fn is_empty(&self) -> bool {
+        self.views.is_empty()
+    }
+
+    /// Pixels of view `v`.
+    pub fn pixels(&self, v: usize) -> usize {
+        self.views[v].len()
+    }
+
+    /// The colour of pixel `p` of view `v`.
+    pub fn get(&self, v: usize, p: usize) -> [f32; 3] {
+        self.views[v][p].map(|q| q as f32 / 65535.0)
+    }
+}
+
 /// The prior of one scene.
 #[derive(Clone, Debug)]
 pub struct ScenePrior {
@@ -197,6 +232,10 @@ pub struct ScenePrior {
     pub reach: Vec<(u32, u32)>,
     /// The colour correction applied to each training view (identity when off or negligible).
     pub corrections: Vec<ColourCorrection>,
+    /// Each training view's background colours at its pose (`width × height`): the background
+    /// image at the same pose, else the background rendered there; what the photo tail reads
+    /// ([`crate::train::trainer::TrainConfig::photo_tail`]).
+    pub behind: std::sync::Arc<BackgroundColours>,
     /// Each training view's registration against the background (`None`: not registered — off,
     /// or the view is a background view's pose); its pose is the view's pose for the prior and
     /// for training, the given one when not applied.
@@ -653,7 +692,8 @@ pub fn scene_prior(
             (dilate(&changed, w, h, cfg.dilate_px), spared)
         })
         .unzip();
-    let depth: Vec<Vec<f32>> = bg.into_iter().map(|(_, z)| z).collect();
+    let (behind, depth): (Vec<Vec<[f32; 3]>>, Vec<Vec<f32>>) = bg.into_iter().unzip();
+    let behind = std::sync::Arc::new(BackgroundColours::new(&behind));
     let region = vote_region(&background.occupancy, views, &maps, &depth, cfg);
     let reach = reach_pixels(&region, views, &depth);
     let focus = set_pixels(&maps);
@@ -661,7 +701,7 @@ pub fn scene_prior(
         Some(spared_maps) => set_pixels(&spared_maps),
         None => focus.clone(),
     };
-    ScenePrior { maps, matched_views, region, focus, spared, reach, corrections, registrations }
+    ScenePrior { maps, matched_views, region, focus, spared, reach, corrections, behind, registrations }
 }
 
 /// `(view, pixel)` of every set pixel of per-view maps, in view then pixel order.
@@ -715,6 +755,9 @@ pub struct ResidualStart {
     pub beta: BetaRegulariser,
     /// What the density floor's fit reached, when there was one.
     pub lift: Option<LiftReport>,
+    /// The background's colours at each training view's pose, with the region
+    /// ([`TrainConfig::behind`]).
+    pub behind: Option<std::sync::Arc<BackgroundColours>>,
 }
 
 /// The start of a residual model over `background` with `config` and `hints`, the scene's
@@ -776,5 +819,6 @@ pub fn residual_start(
         _ => None,
     };
     let beta = if hints.beta { pcfg.beta } else { BetaRegulariser::default() };
-    ResidualStart { field, params, occupancy, focus, beta, lift: lifted }
+    let behind = prior.filter(|_| field.region().is_some()).map(|p| p.behind.clone());
+    ResidualStart { field, params, occupancy, focus, beta, lift: lifted, behind }
 }

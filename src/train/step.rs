@@ -28,11 +28,14 @@ pub fn scale_near_gradients(t: &[f32], distance: f32, d_sigma: &mut [f32], d_rgb
 }
 
 /// The step's rays, their target colours and the colours behind them.
-#[derive(Default)]
+#[derive(Clone, Default)]
 pub(super) struct StepRays {
     pub(super) rays: Vec<Ray>,
     pub(super) targets: Vec<[f32; 3]>,
     pub(super) backgrounds: Vec<[f32; 3]>,
+    /// Each ray's background image colour for the photo tail ([`TrainConfig::photo_tail`];
+    /// NaN: none).
+    pub(super) behind: Vec<[f32; 3]>,
     /// Whether each ray's pixel is known unchanged (the β penalty's rays).
     pub(super) unchanged: Vec<bool>,
     /// Each ray's training image.
@@ -49,6 +52,7 @@ impl StepRays {
         self.rays.clear();
         self.targets.clear();
         self.backgrounds.clear();
+        self.behind.clear();
         self.unchanged.clear();
         self.view.clear();
         self.pixel.clear();
@@ -155,6 +159,34 @@ fn frozen_tail_start<M: Model>(x: &StepInputs<M>, r: &Ray) -> f32 {
     }
 }
 
+/// Where `r` leaves the bounding box of the region its model is frozen outside, when the photo
+/// tail applies to it ([`TrainConfig::photo_tail`]: on, the model frozen outside a region, the
+/// ray's background colour known); 0 for a ray that misses the region.
+fn photo_tail_start<M: Model>(x: &StepInputs<M>, rays: &StepRays, ray: usize) -> Option<f32> {
+    if !x.cfg.photo_tail || rays.behind.get(ray).is_none_or(|b| b[0].is_nan()) {
+        return None;
+    }
+    let b = x.model.frozen_outside().and_then(|f| f.region_bounds())?;
+    let r = &rays.rays[ray];
+    Some(b.intersect(r.origin, r.dir).map_or(0.0, |(_, exit)| exit))
+}
+
+/// How a training ray of the fused step ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Tail {
+    /// At its opaque point or the end of its span (the ray's background colour behind it).
+    None,
+    /// At the frozen tail: its last sample's colour stands for the light behind.
+    Frozen,
+    /// At the photo tail: the light behind read off its pixel's background image.
+    Photo,
+}
+
+/// Below this frozen-background transmittance at the photo tail's start, the background image
+/// says too little about the light behind: the ray's last sample's colour stands for it, as
+/// at the frozen tail.
+const PHOTO_TAIL_MIN_T: f32 = 0.1;
+
 /// A pixel's colour against its target: `rgb` the mean colour of its `n` rays from `first`
 /// (one, or [`TrainConfig::pixel_rays`]; they share target, view and gain), seen through its
 /// image's gain when gains are learned (adding the gain's gradient into `d_gain`). The pixel
@@ -205,8 +237,11 @@ pub(super) struct Worker<C> {
     sigma: Vec<f32>,
     keep: Vec<u32>,
     kept: Vec<(u32, u32)>,
-    /// Per ray of the chunk: whether it stopped at the frozen tail ([`TrainConfig::frozen_tail`]).
-    tails: Vec<bool>,
+    /// Per ray of the chunk: where it stopped ([`TrainConfig::frozen_tail`], [`TrainConfig::photo_tail`]).
+    tails: Vec<Tail>,
+    /// The frozen background's own σ and colour of the chunk's kept rows (the photo tail).
+    frozen_sigma: Vec<f32>,
+    frozen_rgb: Vec<[f32; 3]>,
     rgb: Vec<[f32; 3]>,
     /// Per ray of the chunk: its composite, and the dL/dC its pixel's score gives it.
     composites: Vec<RayComposite>,
@@ -260,6 +295,8 @@ impl<C: Default> Default for Worker<C> {
             keep: Vec::new(),
             kept: Vec::new(),
             tails: Vec::new(),
+            frozen_sigma: Vec::new(),
+            frozen_rgb: Vec::new(),
             rgb: Vec::new(),
             composites: Vec::new(),
             d_colours: Vec::new(),
@@ -304,7 +341,7 @@ impl<C> Worker<C> {
         let per_pixel = x.cfg.rays_per_pixel();
         let mut first = range.start;
         for i in range.clone() {
-            self.add_ray(x, &rays.rays[i]);
+            self.add_ray(x, &rays.rays[i], photo_tail_start(x, rays, i));
             let pixel_done = (i + 1 - range.start).is_multiple_of(per_pixel);
             if (self.keep.len() >= CHUNK_SAMPLES && pixel_done) || i + 1 == range.end {
                 self.run_chunk(x, rays, first..i + 1, slot);
@@ -492,7 +529,10 @@ impl<C> Worker<C> {
     /// the ray also stops at its first sample beyond the region's bounding box whose
     /// transmittance has fallen below `τ`: the rest of the ray is the frozen field, and
     /// [`Worker::run_chunk`] lets that last sample's colour stand for its light.
-    fn add_ray<M: Model<Chunk = C>>(&mut self, x: &StepInputs<M>, r: &Ray) {
+    ///
+    /// With the photo tail (`photo`: where the ray leaves the region's bounding box) the ray
+    /// stops before its first sample beyond that point instead.
+    fn add_ray<M: Model<Chunk = C>>(&mut self, x: &StepInputs<M>, r: &Ray, photo: Option<f32>) {
         let m = &mut self.marched;
         let start = m.t.len();
         let first_kept = self.keep.len() as u32;
@@ -503,6 +543,7 @@ impl<C> Worker<C> {
         // Past the tail's start, below this transmittance the ray goes on at the coarse stride.
         let mut coarse_below = if cfg.frozen_coarse_stride > cfg.frozen_stride { cfg.frozen_coarse } else { 0.0 };
         let mut tailed = false;
+        let mut photoed = false;
         let (positions, dirs, sigma, keep, chunk) =
             (&mut self.positions, &mut self.dirs, &mut self.sigma, &mut self.keep, &mut self.chunk);
         march_in_segments(occ, r, strides, len, &mut m.t, &mut m.delta, |t, delta, seg| {
@@ -514,6 +555,10 @@ impl<C> Worker<C> {
             x.model.chunk_density(x.isa, x.params, seg.start, &positions[seg.clone()], &mut sigma[seg.clone()], chunk);
             for i in seg {
                 if acc.is_opaque() || tailed {
+                    break;
+                }
+                if photo.is_some_and(|exit| t[i] > exit) {
+                    photoed = true;
                     break;
                 }
                 acc.push(sigma[i], delta[i], 0.0, [0.0; 3]);
@@ -528,7 +573,7 @@ impl<C> Worker<C> {
                     return Flow::Coarsen(i);
                 }
             }
-            if acc.is_opaque() || tailed {
+            if acc.is_opaque() || tailed || photoed {
                 Flow::Stop
             } else {
                 Flow::Go
@@ -536,7 +581,11 @@ impl<C> Worker<C> {
         });
         m.rays.push((start as u32, (m.t.len() - start) as u32));
         self.kept.push((first_kept, self.keep.len() as u32 - first_kept));
-        self.tails.push(tailed);
+        self.tails.push(match (tailed, photoed) {
+            (true, _) => Tail::Frozen,
+            (_, true) => Tail::Photo,
+            _ => Tail::None,
+        });
     }
 
     /// The rest of a chunk whose rays [`Worker::add_ray`] evaluated: colours of the kept
@@ -562,6 +611,9 @@ impl<C> Worker<C> {
         if k > 0 {
             x.model.chunk_colour(x.isa, x.params, &self.keep, &self.dirs, &mut self.rgb, &mut self.chunk);
         }
+        if let (Some(split), true) = (x.model.frozen_outside(), self.tails.contains(&Tail::Photo)) {
+            split.chunk_frozen(&self.chunk, &mut self.frozen_sigma, &mut self.frozen_rgb);
+        }
         // Composite, loss, and back through compositing, ray by ray.
         self.d_sigma.resize(k, 0.0);
         self.d_rgb.resize(k, [0.0; 3]);
@@ -572,11 +624,32 @@ impl<C> Worker<C> {
         // Each ray composited (Eq. 2); a pixel's rays are scored together, as the mean colour
         // of its footprint ([`TrainConfig::pixel_rays`]), each taking the same dL/dC.
         self.composites.clear();
-        for ((ray, &(s0, count)), &tailed) in range.clone().zip(&self.kept).zip(&self.tails) {
+        for ((ray, &(s0, count)), &tail) in range.clone().zip(&self.kept).zip(&self.tails) {
             let r = s0 as usize..(s0 + count) as usize;
             // A ray stopped at the frozen tail: its last sample's colour (a constant here, as the
-            // background colour is) stands for the frozen field's light behind it.
-            let behind = if tailed { self.rgb[r.end - 1] } else { rays.backgrounds[ray] };
+            // background colour is) stands for the frozen field's light behind it. At the photo
+            // tail: what the background image leaves after the frozen field's own light in front.
+            let behind = match tail {
+                Tail::Frozen => self.rgb[r.end - 1],
+                Tail::None => rays.backgrounds[ray],
+                Tail::Photo => {
+                    let bg = composite_ray(
+                        &self.frozen_sigma[r.clone()],
+                        &m.delta[r.clone()],
+                        &m.t[r.clone()],
+                        &self.frozen_rgb[r.clone()],
+                        [0.0; 3],
+                    );
+                    let photo = rays.behind[ray];
+                    // C = C_mix + T_mix · C_behind with C_photo = C_bg + T_bg · C_behind: a ray
+                    // the mix leaves as the background predicts its photo, bit for bit up to rounding.
+                    match bg.transmittance >= PHOTO_TAIL_MIN_T {
+                        true => std::array::from_fn(|c| (photo[c] - bg.rgb[c]) / bg.transmittance),
+                        false if count > 0 => self.rgb[r.end - 1],
+                        false => photo,
+                    }
+                }
+            };
             self.composites.push(composite_ray(
                 &self.sigma[r.clone()],
                 &m.delta[r.clone()],

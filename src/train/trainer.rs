@@ -135,7 +135,21 @@ pub struct TrainConfig {
     /// near-camera gradient scaling and no error map (otherwise every ray is fresh). Defaults
     /// to [`RAY_POOL`].
     pub ray_pool: u32,
+    /// The photo tail: with a model frozen outside a region and [`Self::behind`], a training
+    /// ray stops where it leaves the region's bounding box, and the light behind that point is
+    /// read off the background image of its pixel: `(C_photo − C_bg)/T_bg`, where `C_bg` and
+    /// `T_bg` are the frozen background's own colour and transmittance composited over the
+    /// ray's samples so far (so a ray the residual leaves as the background predicts the
+    /// background image exactly). Defaults to [`PHOTO_TAIL`].
+    pub photo_tail: bool,
+    /// Each training view's background colours at its pose (the background image, or the
+    /// background rendered there; [`crate::train::prior::ScenePrior::behind`]), for the photo
+    /// tail. `None`: no photo tail.
+    pub behind: Option<std::sync::Arc<crate::train::prior::BackgroundColours>>,
 }
+
+/// Default of [`TrainConfig::photo_tail`].
+pub const PHOTO_TAIL: bool = true;
 
 /// A share of each step's rays drawn uniformly from a fixed list of pixels.
 #[derive(Clone, Debug)]
@@ -239,6 +253,8 @@ impl TrainConfig {
             pixel_jitter: PIXEL_JITTER,
             pixel_rays: PIXEL_RAYS,
             ray_pool: RAY_POOL,
+            photo_tail: PHOTO_TAIL,
+            behind: None,
         }
     }
 }
@@ -445,6 +461,14 @@ impl<'a, M: Model> Trainer<'a, M> {
             cfg.rays_per_step,
             cfg.pixel_rays
         );
+        if let Some(b) = &cfg.behind {
+            let fits = b.len() == views.len()
+                && views
+                    .iter()
+                    .enumerate()
+                    .all(|(i, v)| b.pixels(i) == (v.intrinsics.width * v.intrinsics.height) as usize);
+            assert!(fits, "train: the background colours are not one per pixel of the training views");
+        }
         let grads = model.zero_grads();
         let adams = model
             .groups(&mut params, &grads)
@@ -669,6 +693,10 @@ impl<'a, M: Model> Trainer<'a, M> {
                         });
                         rays.targets.push(target);
                         rays.backgrounds.push(background_colour(cfg, &mut srng));
+                        rays.behind.push(match (&cfg.behind, cfg.photo_tail) {
+                            (Some(b), true) => b.get(vi as usize, p as usize),
+                            _ => [f32::NAN; 3],
+                        });
                     }
                 }
             }
