@@ -71,7 +71,7 @@ fn fused_matches_batch<M: Model>(name: &str, model: &M, params: &M::Params, rng:
     for (s, range) in [(0, 0..40), (0, 40..75), (1, 75..n)] {
         let mut sigma = vec![0.0; range.len()];
         let mut only = vec![0.0; range.len()];
-        model.chunk_density_only(isa, params, &pos[range.clone()], &mut only, &mut chunk);
+        model.chunk_density_only(isa, params, &pos[range.clone()], None, &mut only, &mut chunk);
         // The chunk grows in two calls (as a ray evaluated segment by segment does).
         let split = (range.len() * 2 / 5).max(1);
         let (first, rest) = sigma.split_at_mut(split);

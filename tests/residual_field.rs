@@ -247,3 +247,50 @@ fn colour_only_mixing_keeps_the_solid_backgrounds_density() {
         assert!(gg.residual.density.iter().any(|&v| v != 0.0), "{kind:?}: the air's points train it");
     }
 }
+
+/// The depth-only chunk path with the threshold given skips the Mixnet where the two densities
+/// lie on one side of it: every sample lands on the same side of the threshold as with the
+/// Mixnet evaluated everywhere, the samples β decides keep their σ bit for bit, and at a
+/// threshold near the field's densities both kinds of sample occur. For both density mixes,
+/// with and without colour-only mixing where the background is solid.
+#[test]
+fn the_depth_only_path_skips_the_mixnet_only_where_beta_cannot_cross_the_threshold() {
+    use residual_nerf::field::model::Model;
+    let isa = common::best_fp32_isa();
+    for kind in [MixKind::Mixnet(DensityMix::Raw), MixKind::Mixnet(DensityMix::Activated)] {
+        let mut rng = Rng::new(11);
+        let bg = background(&mut rng);
+        let own = MixnetEncoding::Own(HashGridConfig {
+            levels: 2,
+            log2_table_size: 6,
+            base_resolution: 4,
+            finest_resolution: 8,
+        });
+        let cfg = ResidualConfig { residual: NerfConfig { grid: grid(), aabb: aabb() }, kind, mixnet: own };
+        let plain = ResidualField::new(bg.clone(), cfg);
+        let mut p = plain.init_params(&mut rng);
+        p.residual.grid.master.iter_mut().for_each(|v| *v = rng.uniform(-1.5, 1.5));
+        p.residual.grid.sync_mirror();
+        let n = 256;
+        let pos: Vec<Vec3> =
+            (0..n).map(|_| Vec3::new(rng.uniform(-0.9, 0.9), rng.uniform(-0.9, 0.9), rng.uniform(-0.9, 0.9))).collect();
+        let m = median_background_sigma(&bg, &pos);
+        for field in [plain.clone(), plain.clone().with_solid_background(m)] {
+            let mut chunk = Default::default();
+            let mut exact = vec![0.0; n];
+            Model::chunk_density_only(&field, isa, &p, &pos, None, &mut exact, &mut chunk);
+            let mut skipped = vec![0.0; n];
+            Model::chunk_density_only(&field, isa, &p, &pos, Some(m), &mut skipped, &mut chunk);
+            let (mut same, mut differ) = (0, 0);
+            for i in 0..n {
+                assert_eq!(skipped[i] >= m, exact[i] >= m, "{kind:?}: sample {i} moved across the threshold");
+                if skipped[i].to_bits() == exact[i].to_bits() {
+                    same += 1;
+                } else {
+                    differ += 1;
+                }
+            }
+            assert!(same > 0 && differ > 0, "{kind:?}: {same} samples evaluated β, {differ} skipped it");
+        }
+    }
+}

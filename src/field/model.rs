@@ -97,13 +97,17 @@ pub trait Model: Sync {
         c: &mut Self::Chunk,
     );
     /// [`Model::density`] on this thread, for a chunk (depth-only rendering): density
-    /// networks' first outputs only, the same σ; `c` is then scratch, not a chunk
-    /// [`Model::chunk_colour`] can continue.
+    /// networks' first outputs only; `c` is then scratch, not a chunk [`Model::chunk_colour`]
+    /// can continue. The σ is exact, or with `min_sigma` (the threshold the caller compares
+    /// against), where the model can tell without evaluating everything which side of
+    /// `min_sigma` a sample's σ lies on, a value on that side (a residual model skips its
+    /// Mixnet where β cannot move σ across it).
     fn chunk_density_only(
         &self,
         isa: Isa,
         p: &Self::Params,
         positions: &[Vec3],
+        min_sigma: Option<f32>,
         sigma: &mut [f32],
         c: &mut Self::Chunk,
     );
@@ -357,7 +361,15 @@ impl Model for NerfField {
         c.sigma.extend_from_slice(sigma);
     }
 
-    fn chunk_density_only(&self, isa: Isa, p: &NerfParams, positions: &[Vec3], sigma: &mut [f32], c: &mut NerfChunk) {
+    fn chunk_density_only(
+        &self,
+        isa: Isa,
+        p: &NerfParams,
+        positions: &[Vec3],
+        _min_sigma: Option<f32>,
+        sigma: &mut [f32],
+        c: &mut NerfChunk,
+    ) {
         c.raw.resize(positions.len(), 0.0);
         NerfField::chunk_density_only(self, isa, p, positions, &mut c.raw, &mut c.field);
         for (s, &r) in sigma.iter_mut().zip(&c.raw) {
@@ -492,10 +504,11 @@ impl Model for ResidualField {
         isa: Isa,
         p: &ResidualParams,
         positions: &[Vec3],
+        min_sigma: Option<f32>,
         sigma: &mut [f32],
         c: &mut ResidualChunk,
     ) {
-        ResidualField::chunk_density_only(self, isa, p, positions, sigma, c);
+        ResidualField::chunk_density_only(self, isa, p, positions, min_sigma, sigma, c);
     }
 
     fn chunk_colour(

@@ -8,6 +8,7 @@ use super::mixnet::{Mixnet, MixnetChunk, MixnetContext, MixnetEncoding, MixnetGr
 use super::model::FrozenOutside;
 use super::{FieldChunk, FieldContext, Nerf, NerfConfig, NerfField, NerfGrads, NerfParams, NetGrads};
 use crate::geometry::ChangeRegion;
+use crate::mlp::Activation;
 use crate::rng::Rng;
 use crate::simd::Isa;
 use crate::GradientMode;
@@ -445,16 +446,21 @@ impl ResidualField {
 
     /// [`ResidualField::density`] on this thread, for a chunk (depth-only rendering): the
     /// density networks' and the Mixnet's first outputs only; `c` is not a chunk
-    /// [`ResidualField::chunk_colour`] can continue.
+    /// [`ResidualField::chunk_colour`] can continue. With `min_sigma`, a sample whose
+    /// background and residual densities lie on one side of it (by a margin rounding cannot
+    /// cross) skips the Mixnet: the mix lies between the two for any β, so its σ is on that
+    /// side too, and the nearer of the two is written instead (its own Mixnet grid only).
     pub fn chunk_density_only(
         &self,
         isa: Isa,
         params: &ResidualParams,
         positions: &[Vec3],
+        min_sigma: Option<f32>,
         sigma: &mut [f32],
         c: &mut ResidualChunk,
     ) {
-        self.chunk_sigma(isa, params, positions, sigma, c, None, None);
+        let threshold = min_sigma.filter(|_| self.mixnet.grid().is_some());
+        self.chunk_sigma_with(isa, params, positions, sigma, c, None, None, threshold);
     }
 
     /// Mixed σ of `positions`: as the chunk's rows `from..` when `rows` is `Some(from)`,
@@ -472,6 +478,24 @@ impl ResidualField {
         c: &mut ResidualChunk,
         rows: Option<usize>,
         frozen: Option<&[f32]>,
+    ) {
+        self.chunk_sigma_with(isa, params, positions, sigma, c, rows, frozen, None);
+    }
+
+    /// [`ResidualField::chunk_sigma`]; with `threshold` (depth-only, `rows` `None`) the inside
+    /// rows whose two densities lie on one side of it skip the Mixnet
+    /// ([`ResidualField::chunk_density_only`]).
+    #[allow(clippy::too_many_arguments)]
+    fn chunk_sigma_with(
+        &self,
+        isa: Isa,
+        params: &ResidualParams,
+        positions: &[Vec3],
+        sigma: &mut [f32],
+        c: &mut ResidualChunk,
+        rows: Option<usize>,
+        frozen: Option<&[f32]>,
+        threshold: Option<f32>,
     ) {
         let n = positions.len();
         assert_eq!(sigma.len(), n, "residual: output length differs from the sample count");
@@ -523,7 +547,31 @@ impl ResidualField {
                 }
             }
         }
-        if matches!(self.kind, MixKind::Mixnet(_)) {
+        // Depth-only with a threshold: the inside rows β decides (the rest were settled).
+        let mut settled = false;
+        if let (Some(m), MixKind::Mixnet(_), None) = (threshold, self.kind, rows) {
+            settled = true;
+            c.sub_keep.clear();
+            c.sub_pos.clear();
+            for &r in &c.inside[sub_from..] {
+                let (a, b) = (c.s_bg[r as usize], c.s_res[r as usize]);
+                match decided(a, b, m) {
+                    Some(s) => sigma[r as usize - from] = s,
+                    None => {
+                        c.sub_keep.push(r);
+                        c.sub_pos.push(positions[r as usize - from]);
+                    }
+                }
+            }
+            c.sub_out.clear();
+            c.sub_out.resize(c.sub_pos.len(), 0.0);
+            if !c.sub_pos.is_empty() {
+                self.mixnet.chunk_logits(isa, &params.mixnet, &c.sub_pos, None, &mut c.sub_out, &mut c.mix);
+            }
+            for (&r, &m) in c.sub_keep.iter().zip(&c.sub_out) {
+                c.logits[r as usize] = m;
+            }
+        } else if matches!(self.kind, MixKind::Mixnet(_)) {
             let shared = (self.mixnet.grid().is_none()).then(|| c.res.features());
             let (mixnet, p, logits) = (&self.mixnet, &params.mixnet, &mut c.sub_out);
             match rows {
@@ -533,6 +581,34 @@ impl ResidualField {
             for (&r, &m) in c.inside[sub_from..].iter().zip(&c.sub_out) {
                 c.logits[r as usize] = m;
             }
+        }
+        if settled {
+            // Outside rows and the inside rows β decided: the mix; the settled rows keep theirs.
+            let mut k = 0;
+            let inside = &c.inside[sub_from..];
+            let mut j = 0;
+            for (i, s) in sigma.iter_mut().enumerate() {
+                let row = from + i;
+                while j < inside.len() && (inside[j] as usize) < row {
+                    j += 1;
+                }
+                let is_inside = inside.get(j) == Some(&(row as u32));
+                let needs_mix = c.sub_keep.get(k) == Some(&(row as u32));
+                if needs_mix {
+                    k += 1;
+                }
+                if !is_inside || needs_mix {
+                    let x = MixInput {
+                        s_bg: c.s_bg[row],
+                        c_bg: [0.0; 3],
+                        s_res: c.s_res[row],
+                        c_res: [0.0; 3],
+                        m: c.logits[row],
+                    };
+                    *s = mix_forward(self.kind, &x).sigma;
+                }
+            }
+            return;
         }
         for (i, s) in sigma.iter_mut().enumerate() {
             let j = from + i;
@@ -685,6 +761,24 @@ impl ResidualField {
     /// The residual's features of the last forward when the Mixnet shares them.
     fn shared_features<'c>(&self, res: &'c FieldContext) -> Option<&'c [f32]> {
         (self.mixnet.grid().is_none()).then(|| res.features())
+    }
+}
+
+/// The σ a sample's mix has on the side of `m` both its raw densities `a` (background) and `b`
+/// (residual) lie on, when they lie on one side by a margin that rounding cannot cross (the
+/// mix is between the two for every β): the nearer of the two to `m`; `None` when β decides.
+fn decided(a: f32, b: f32, m: f32) -> Option<f32> {
+    /// Relative margin on σ (≈ 1e-3 on the raw density), far above f32 rounding of the mix.
+    const MARGIN: f32 = 1e-3;
+    let (lo, hi) = (a.min(b), a.max(b));
+    let (s_lo, s_hi) = (Activation::TruncExp.forward(lo), Activation::TruncExp.forward(hi));
+    // Both density mixes lie between the two: the raw one in log space, the activated in σ.
+    if s_hi < m * (1.0 - MARGIN) {
+        Some(s_hi)
+    } else if s_lo >= m * (1.0 + MARGIN) {
+        Some(s_lo)
+    } else {
+        None
     }
 }
 

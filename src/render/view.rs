@@ -370,7 +370,7 @@ impl<M: Model> Worker<M> {
             } else {
                 // On this thread, a chunk at a time, density networks' first outputs only.
                 for (p, s) in self.positions.chunks(CHUNK).zip(self.sigma.chunks_mut(CHUNK)) {
-                    scene.model.chunk_density_only(isa, scene.params, p, s, &mut self.chunk);
+                    scene.model.chunk_density_only(isa, scene.params, p, Some(min_sigma), s, &mut self.chunk);
                 }
             }
             let (states, t, sigma, seg) = (&mut self.states, &self.t, &self.sigma, &self.seg);
