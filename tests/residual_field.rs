@@ -185,6 +185,27 @@ fn median_background_sigma(bg: &Nerf, pos: &[Vec3]) -> f32 {
     (0.5 * (s[k - 1] + s[k])).exp()
 }
 
+/// A residual field of `kind` with its own small Mixnet grid over a random background, its
+/// residual grid drawn uniformly from ±`spread`, and `n` random points inside the box.
+fn random_field(
+    kind: MixKind,
+    spread: f32,
+    n: usize,
+    rng: &mut Rng,
+) -> (Nerf, ResidualField, ResidualParams, Vec<Vec3>) {
+    let bg = background(rng);
+    let own =
+        MixnetEncoding::Own(HashGridConfig { levels: 2, log2_table_size: 6, base_resolution: 4, finest_resolution: 8 });
+    let cfg = ResidualConfig { residual: NerfConfig { grid: grid(), aabb: aabb() }, kind, mixnet: own };
+    let field = ResidualField::new(bg.clone(), cfg);
+    let mut p = field.init_params(rng);
+    p.residual.grid.master.iter_mut().for_each(|v| *v = rng.uniform(-spread, spread));
+    p.residual.grid.sync_mirror();
+    let pos: Vec<Vec3> =
+        (0..n).map(|_| Vec3::new(rng.uniform(-0.9, 0.9), rng.uniform(-0.9, 0.9), rng.uniform(-0.9, 0.9))).collect();
+    (bg, field, p, pos)
+}
+
 /// With colour-only mixing where the background is solid, the mixed density there is the
 /// background's whatever the residual and β are, and the residual's density gets no gradient
 /// from it; the colour still mixes. Elsewhere the density mixes as without it.
@@ -192,22 +213,8 @@ fn median_background_sigma(bg: &Nerf, pos: &[Vec3]) -> f32 {
 fn colour_only_mixing_keeps_the_solid_backgrounds_density() {
     let isa = common::best_fp32_isa();
     for kind in [MixKind::Mixnet(DensityMix::Raw), MixKind::Mixnet(DensityMix::Activated)] {
-        let mut rng = Rng::new(8);
-        let bg = background(&mut rng);
-        let own = MixnetEncoding::Own(HashGridConfig {
-            levels: 2,
-            log2_table_size: 6,
-            base_resolution: 4,
-            finest_resolution: 8,
-        });
-        let cfg = ResidualConfig { residual: NerfConfig { grid: grid(), aabb: aabb() }, kind, mixnet: own };
-        let plain = ResidualField::new(bg.clone(), cfg);
-        let mut p = plain.init_params(&mut rng);
-        p.residual.grid.master.iter_mut().for_each(|v| *v = rng.uniform(-1.0, 1.0));
-        p.residual.grid.sync_mirror();
         let n = 64;
-        let pos: Vec<Vec3> =
-            (0..n).map(|_| Vec3::new(rng.uniform(-0.9, 0.9), rng.uniform(-0.9, 0.9), rng.uniform(-0.9, 0.9))).collect();
+        let (bg, plain, p, pos) = random_field(kind, 1.0, n, &mut Rng::new(8));
         let dirs = vec![Vec3::Z; n];
         let level = median_background_sigma(&bg, &pos);
         let gated = plain.clone().with_solid_background(level);
@@ -258,22 +265,8 @@ fn the_depth_only_path_skips_the_mixnet_only_where_beta_cannot_cross_the_thresho
     use residual_nerf::field::model::Model;
     let isa = common::best_fp32_isa();
     for kind in [MixKind::Mixnet(DensityMix::Raw), MixKind::Mixnet(DensityMix::Activated)] {
-        let mut rng = Rng::new(11);
-        let bg = background(&mut rng);
-        let own = MixnetEncoding::Own(HashGridConfig {
-            levels: 2,
-            log2_table_size: 6,
-            base_resolution: 4,
-            finest_resolution: 8,
-        });
-        let cfg = ResidualConfig { residual: NerfConfig { grid: grid(), aabb: aabb() }, kind, mixnet: own };
-        let plain = ResidualField::new(bg.clone(), cfg);
-        let mut p = plain.init_params(&mut rng);
-        p.residual.grid.master.iter_mut().for_each(|v| *v = rng.uniform(-1.5, 1.5));
-        p.residual.grid.sync_mirror();
         let n = 256;
-        let pos: Vec<Vec3> =
-            (0..n).map(|_| Vec3::new(rng.uniform(-0.9, 0.9), rng.uniform(-0.9, 0.9), rng.uniform(-0.9, 0.9))).collect();
+        let (bg, plain, p, pos) = random_field(kind, 1.5, n, &mut Rng::new(11));
         let m = median_background_sigma(&bg, &pos);
         for field in [plain.clone(), plain.clone().with_solid_background(m)] {
             let mut chunk = Default::default();

@@ -441,7 +441,7 @@ impl ResidualField {
         sigma: &mut [f32],
         c: &mut ResidualChunk,
     ) {
-        self.chunk_sigma(isa, params, positions, sigma, c, Some(from), None);
+        self.chunk_sigma(isa, params, positions, sigma, c, Some(from), None, None);
     }
 
     /// [`ResidualField::density`] on this thread, for a chunk (depth-only rendering): the
@@ -460,33 +460,18 @@ impl ResidualField {
         c: &mut ResidualChunk,
     ) {
         let threshold = min_sigma.filter(|_| self.mixnet.grid().is_some());
-        self.chunk_sigma_with(isa, params, positions, sigma, c, None, None, threshold);
+        self.chunk_sigma(isa, params, positions, sigma, c, None, None, threshold);
     }
 
     /// Mixed σ of `positions`: as the chunk's rows `from..` when `rows` is `Some(from)`,
     /// keeping everything the colour half needs; σ alone when `None`. The background is
     /// evaluated on every row (or its raw densities taken from `frozen`, with `rows`), the
     /// residual and the Mixnet only on the rows inside the change region (all rows without
-    /// one); outside it β = 0 and the mix is the background's.
+    /// one); outside it β = 0 and the mix is the background's. With `threshold` (depth-only,
+    /// `rows` `None`) the inside rows whose two densities lie on one side of it skip the
+    /// Mixnet ([`ResidualField::chunk_density_only`]).
     #[allow(clippy::too_many_arguments)]
     fn chunk_sigma(
-        &self,
-        isa: Isa,
-        params: &ResidualParams,
-        positions: &[Vec3],
-        sigma: &mut [f32],
-        c: &mut ResidualChunk,
-        rows: Option<usize>,
-        frozen: Option<&[f32]>,
-    ) {
-        self.chunk_sigma_with(isa, params, positions, sigma, c, rows, frozen, None);
-    }
-
-    /// [`ResidualField::chunk_sigma`]; with `threshold` (depth-only, `rows` `None`) the inside
-    /// rows whose two densities lie on one side of it skip the Mixnet
-    /// ([`ResidualField::chunk_density_only`]).
-    #[allow(clippy::too_many_arguments)]
-    fn chunk_sigma_with(
         &self,
         isa: Isa,
         params: &ResidualParams,
@@ -822,7 +807,7 @@ impl FrozenOutside<ResidualParams, ResidualChunk> for ResidualField {
         c: &mut ResidualChunk,
     ) {
         assert_eq!(frozen.len(), positions.len(), "residual: frozen densities differ from the sample count");
-        self.chunk_sigma(isa, params, positions, sigma, c, Some(0), Some(frozen));
+        self.chunk_sigma(isa, params, positions, sigma, c, Some(0), Some(frozen), None);
     }
 
     fn chunk_colour_over(
