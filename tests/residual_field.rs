@@ -257,33 +257,45 @@ fn colour_only_mixing_keeps_the_solid_backgrounds_density() {
 
 /// The depth-only chunk path with the threshold given skips the Mixnet where the two densities
 /// lie on one side of it: every sample lands on the same side of the threshold as with the
-/// Mixnet evaluated everywhere, the samples β decides keep their σ bit for bit, and at a
-/// threshold near the field's densities both kinds of sample occur. For both density mixes,
-/// with and without colour-only mixing where the background is solid.
+/// Mixnet evaluated everywhere (with β pushed towards 1 and towards 0, so a wrongly skipped
+/// sample shows), and at a threshold near the field's densities both kinds of sample occur.
+/// For both density mixes, with and without colour-only mixing where the background is solid.
 #[test]
 fn the_depth_only_path_skips_the_mixnet_only_where_beta_cannot_cross_the_threshold() {
     use residual_nerf::field::model::Model;
     let isa = common::best_fp32_isa();
     for kind in [MixKind::Mixnet(DensityMix::Raw), MixKind::Mixnet(DensityMix::Activated)] {
         let n = 256;
-        let (bg, plain, p, pos) = random_field(kind, 1.5, n, &mut Rng::new(11));
+        let (bg, plain, mut p, pos) = random_field(kind, 1.5, n, &mut Rng::new(11));
         let m = median_background_sigma(&bg, &pos);
-        for field in [plain.clone(), plain.clone().with_solid_background(m)] {
-            let mut chunk = Default::default();
-            let mut exact = vec![0.0; n];
-            Model::chunk_density_only(&field, isa, &p, &pos, None, &mut exact, &mut chunk);
-            let mut skipped = vec![0.0; n];
-            Model::chunk_density_only(&field, isa, &p, &pos, Some(m), &mut skipped, &mut chunk);
-            let (mut same, mut differ) = (0, 0);
-            for i in 0..n {
-                assert_eq!(skipped[i] >= m, exact[i] >= m, "{kind:?}: sample {i} moved across the threshold");
-                if skipped[i].to_bits() == exact[i].to_bits() {
-                    same += 1;
-                } else {
-                    differ += 1;
-                }
+        // Mixnets that have left β = ½ (the output layer starts at zero) for either end: β near 1
+        // and near 0, so a sample skipped where its densities straddle m lands on the wrong side
+        // in one of the two, and a skipped sample's σ (the mix at β = ½) differs from the
+        // evaluated one.
+        for weight in [50.0, -50.0] {
+            let last = *plain.mixnet().mlp().layers().last().unwrap();
+            let w = p.mixnet.mlp.weights_mut();
+            for k in 0..last.k_real {
+                w[last.offset + k * last.o] = weight;
             }
-            assert!(same > 0 && differ > 0, "{kind:?}: {same} samples evaluated β, {differ} skipped it");
+            p.mixnet.mlp.sync();
+            for field in [plain.clone(), plain.clone().with_solid_background(m)] {
+                let mut chunk = Default::default();
+                let mut exact = vec![0.0; n];
+                Model::chunk_density_only(&field, isa, &p, &pos, None, &mut exact, &mut chunk);
+                let mut skipped = vec![0.0; n];
+                Model::chunk_density_only(&field, isa, &p, &pos, Some(m), &mut skipped, &mut chunk);
+                let (mut same, mut differ) = (0, 0);
+                for i in 0..n {
+                    assert_eq!(skipped[i] >= m, exact[i] >= m, "{kind:?}: sample {i} moved across the threshold");
+                    if skipped[i].to_bits() == exact[i].to_bits() {
+                        same += 1;
+                    } else {
+                        differ += 1;
+                    }
+                }
+                assert!(same > 0 && differ > 0, "{kind:?}: {same} samples evaluated β, {differ} skipped it");
+            }
         }
     }
 }

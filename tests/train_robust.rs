@@ -202,6 +202,19 @@ fn aware_start(
     (field, params, occupancy, cfg)
 }
 
+/// The parameters a run of `cfg` from `params` and `occupancy` ends with.
+fn trained_params(
+    field: &ResidualField,
+    views: &[View],
+    cfg: &TrainConfig,
+    params: &<ResidualField as Model>::Params,
+    occupancy: &OccupancyGrid,
+) -> <ResidualField as Model>::Params {
+    let mut t = Trainer::starting_at(Isa::detect(), field, views, cfg, params.clone(), occupancy.clone());
+    run_to_end(&mut t);
+    t.into_state().params
+}
+
 /// The background-aware start with the ray pool on: the resumed run refills the pool at its
 /// step and ends with the same bits.
 #[test]
@@ -210,12 +223,7 @@ fn a_resumed_run_with_the_ray_pool_equals_an_uninterrupted_one() {
     let (field, params, occupancy, mut cfg) = aware_start(&scene);
     cfg.ray_pool = 4;
     // The pool is on: it draws other rays than fresh sampling does.
-    let isa = Isa::detect();
-    let ends = |cfg: &TrainConfig| {
-        let mut t = Trainer::starting_at(isa, &field, &scene.views, cfg, params.clone(), occupancy.clone());
-        run_to_end(&mut t);
-        t.into_state().params
-    };
+    let ends = |cfg: &TrainConfig| trained_params(&field, &scene.views, cfg, &params, &occupancy);
     let mut fresh = cfg.clone();
     fresh.ray_pool = 0;
     assert!(ends(&cfg) != ends(&fresh), "the pooled run trained as the fresh one");
@@ -237,12 +245,7 @@ fn a_resumed_run_with_the_photo_tail_equals_an_uninterrupted_one() {
         scene.views.iter().map(|v| v.rgb.iter().map(|c| c.map(|x| 0.8 * x + 0.1)).collect()).collect();
     cfg.behind = Some(std::sync::Arc::new(BackgroundColours::new(&dimmed)));
     assert!(cfg.photo_tail, "the photo tail is on by default");
-    let isa = Isa::detect();
-    let ends = |cfg: &TrainConfig| {
-        let mut t = Trainer::starting_at(isa, &field, &scene.views, cfg, params.clone(), occupancy.clone());
-        run_to_end(&mut t);
-        t.into_state().params
-    };
+    let ends = |cfg: &TrainConfig| trained_params(&field, &scene.views, cfg, &params, &occupancy);
     let mut without = cfg.clone();
     without.behind = None;
     assert!(ends(&cfg) != ends(&without), "the photo tail changed nothing");

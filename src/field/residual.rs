@@ -449,7 +449,7 @@ impl ResidualField {
     /// [`ResidualField::chunk_colour`] can continue. With `min_sigma`, a sample whose
     /// background and residual densities lie on one side of it (by a margin rounding cannot
     /// cross) skips the Mixnet: the mix lies between the two for any β, so its σ is on that
-    /// side too, and the nearer of the two is written instead (its own Mixnet grid only).
+    /// side too, and the mix at β = ½ is written instead (its own Mixnet grid only).
     pub fn chunk_density_only(
         &self,
         isa: Isa,
@@ -532,20 +532,16 @@ impl ResidualField {
                 }
             }
         }
-        // Depth-only with a threshold: the inside rows β decides (the rest were settled).
-        let mut settled = false;
+        // Depth-only with a threshold: the Mixnet on the inside rows β decides only; the rest
+        // keep the logit 0 (β = ½), whose mix is on the same side of the threshold as any β's.
         if let (Some(m), MixKind::Mixnet(_), None) = (threshold, self.kind, rows) {
-            settled = true;
             c.sub_keep.clear();
             c.sub_pos.clear();
             for &r in &c.inside[sub_from..] {
-                let (a, b) = (c.s_bg[r as usize], c.s_res[r as usize]);
-                match decided(a, b, m) {
-                    Some(s) => sigma[r as usize - from] = s,
-                    None => {
-                        c.sub_keep.push(r);
-                        c.sub_pos.push(positions[r as usize - from]);
-                    }
+                c.logits[r as usize] = 0.0;
+                if !beta_cannot_cross(c.s_bg[r as usize], c.s_res[r as usize], m) {
+                    c.sub_keep.push(r);
+                    c.sub_pos.push(positions[r as usize - from]);
                 }
             }
             c.sub_out.clear();
@@ -566,34 +562,6 @@ impl ResidualField {
             for (&r, &m) in c.inside[sub_from..].iter().zip(&c.sub_out) {
                 c.logits[r as usize] = m;
             }
-        }
-        if settled {
-            // Outside rows and the inside rows β decided: the mix; the settled rows keep theirs.
-            let mut k = 0;
-            let inside = &c.inside[sub_from..];
-            let mut j = 0;
-            for (i, s) in sigma.iter_mut().enumerate() {
-                let row = from + i;
-                while j < inside.len() && (inside[j] as usize) < row {
-                    j += 1;
-                }
-                let is_inside = inside.get(j) == Some(&(row as u32));
-                let needs_mix = c.sub_keep.get(k) == Some(&(row as u32));
-                if needs_mix {
-                    k += 1;
-                }
-                if !is_inside || needs_mix {
-                    let x = MixInput {
-                        s_bg: c.s_bg[row],
-                        c_bg: [0.0; 3],
-                        s_res: c.s_res[row],
-                        c_res: [0.0; 3],
-                        m: c.logits[row],
-                    };
-                    *s = mix_forward(self.kind, &x).sigma;
-                }
-            }
-            return;
         }
         for (i, s) in sigma.iter_mut().enumerate() {
             let j = from + i;
@@ -749,22 +717,15 @@ impl ResidualField {
     }
 }
 
-/// The σ a sample's mix has on the side of `m` both its raw densities `a` (background) and `b`
-/// (residual) lie on, when they lie on one side by a margin that rounding cannot cross (the
-/// mix is between the two for every β): the nearer of the two to `m`; `None` when β decides.
-fn decided(a: f32, b: f32, m: f32) -> Option<f32> {
+/// Whether a sample whose raw densities are `a` (background) and `b` (residual) has its mixed
+/// σ on the same side of `m` for every β: both densities lie on one side of `m` by a margin
+/// that rounding of the mix cannot cross (both density mixes lie between the two: the raw one
+/// in log space, the activated one in σ).
+fn beta_cannot_cross(a: f32, b: f32, m: f32) -> bool {
     /// Relative margin on σ (≈ 1e-3 on the raw density), far above f32 rounding of the mix.
     const MARGIN: f32 = 1e-3;
-    let (lo, hi) = (a.min(b), a.max(b));
-    let (s_lo, s_hi) = (Activation::TruncExp.forward(lo), Activation::TruncExp.forward(hi));
-    // Both density mixes lie between the two: the raw one in log space, the activated in σ.
-    if s_hi < m * (1.0 - MARGIN) {
-        Some(s_hi)
-    } else if s_lo >= m * (1.0 + MARGIN) {
-        Some(s_lo)
-    } else {
-        None
-    }
+    let sigma = |s: f32| Activation::TruncExp.forward(s);
+    sigma(a.max(b)) < m * (1.0 - MARGIN) || sigma(a.min(b)) >= m * (1.0 + MARGIN)
 }
 
 impl FrozenOutside<ResidualParams, ResidualChunk> for ResidualField {

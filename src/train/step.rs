@@ -146,29 +146,19 @@ pub(super) fn march_in_segments(
     }
 }
 
-/// Where `r` leaves the region its model is frozen outside ([`FrozenOutside::region_bounds`]):
-/// beyond it a training ray may stop at the frozen tail ([`TrainConfig::frozen_tail`]); 0 for
-/// a ray that misses the region, +∞ when the tail is off or the model has no region.
-fn frozen_tail_start<M: Model>(x: &StepInputs<M>, r: &Ray) -> f32 {
-    if x.cfg.frozen_tail <= 0.0 {
-        return f32::INFINITY;
-    }
-    match x.model.frozen_outside().and_then(|f| f.region_bounds()) {
-        Some(b) => b.intersect(r.origin, r.dir).map_or(0.0, |(_, exit)| exit),
-        None => f32::INFINITY,
-    }
+/// Where `r` leaves the bounding box of the region its model is frozen outside
+/// ([`FrozenOutside::region_bounds`]): beyond it a training ray may stop at the frozen tail
+/// ([`TrainConfig::frozen_tail`]) or the photo tail ([`TrainConfig::photo_tail`]); 0 for a ray
+/// that misses the region, `None` when the model has no region.
+fn region_exit<M: Model>(x: &StepInputs<M>, r: &Ray) -> Option<f32> {
+    let b = x.model.frozen_outside().and_then(|f| f.region_bounds())?;
+    Some(b.intersect(r.origin, r.dir).map_or(0.0, |(_, exit)| exit))
 }
 
-/// Where `r` leaves the bounding box of the region its model is frozen outside, when the photo
-/// tail applies to it ([`TrainConfig::photo_tail`]: on, the model frozen outside a region, the
-/// ray's background colour known); 0 for a ray that misses the region.
-fn photo_tail_start<M: Model>(x: &StepInputs<M>, rays: &StepRays, ray: usize) -> Option<f32> {
-    if !x.cfg.photo_tail || rays.behind.get(ray).is_none_or(|b| b[0].is_nan()) {
-        return None;
-    }
-    let b = x.model.frozen_outside().and_then(|f| f.region_bounds())?;
-    let r = &rays.rays[ray];
-    Some(b.intersect(r.origin, r.dir).map_or(0.0, |(_, exit)| exit))
+/// Whether the photo tail applies to ray `ray` ([`TrainConfig::photo_tail`] on and the ray's
+/// background colour known).
+fn has_photo<M: Model>(x: &StepInputs<M>, rays: &StepRays, ray: usize) -> bool {
+    x.cfg.photo_tail && rays.behind.get(ray).is_some_and(|b| !b[0].is_nan())
 }
 
 /// How a training ray of the fused step ended.
@@ -341,7 +331,7 @@ impl<C> Worker<C> {
         let per_pixel = x.cfg.rays_per_pixel();
         let mut first = range.start;
         for i in range.clone() {
-            self.add_ray(x, &rays.rays[i], photo_tail_start(x, rays, i));
+            self.add_ray(x, &rays.rays[i], has_photo(x, rays, i));
             let pixel_done = (i + 1 - range.start).is_multiple_of(per_pixel);
             if (self.keep.len() >= CHUNK_SAMPLES && pixel_done) || i + 1 == range.end {
                 self.run_chunk(x, rays, first..i + 1, slot);
@@ -530,15 +520,18 @@ impl<C> Worker<C> {
     /// transmittance has fallen below `τ`: the rest of the ray is the frozen field, and
     /// [`Worker::run_chunk`] lets that last sample's colour stand for its light.
     ///
-    /// With the photo tail (`photo`: where the ray leaves the region's bounding box) the ray
-    /// stops before its first sample beyond that point instead.
-    fn add_ray<M: Model<Chunk = C>>(&mut self, x: &StepInputs<M>, r: &Ray, photo: Option<f32>) {
+    /// With the photo tail (`photo`) the ray stops before its first sample beyond the region's
+    /// bounding box instead.
+    fn add_ray<M: Model<Chunk = C>>(&mut self, x: &StepInputs<M>, r: &Ray, photo: bool) {
         let m = &mut self.marched;
         let start = m.t.len();
         let first_kept = self.keep.len() as u32;
         let mut acc = RayAccumulator::new();
-        let tail = frozen_tail_start(x, r);
         let (cfg, occ, len) = (x.cfg, x.occupancy, self.segment);
+        // Past the region's box: the photo tail's stop, or where the frozen tail may start.
+        let exit = region_exit(x, r);
+        let photo = exit.filter(|_| photo);
+        let tail = exit.filter(|_| cfg.frozen_tail > 0.0).unwrap_or(f32::INFINITY);
         let strides = (cfg.frozen_stride, cfg.frozen_coarse_stride);
         // Past the tail's start, below this transmittance the ray goes on at the coarse stride.
         let mut coarse_below = if cfg.frozen_coarse_stride > cfg.frozen_stride { cfg.frozen_coarse } else { 0.0 };
