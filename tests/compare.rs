@@ -183,17 +183,18 @@ fn demo_writes_data_table_sheets_and_models_the_next_commands_read() {
     let m = residual_nerf::render::DensityThreshold::Sigma(1.0);
     let depth = residual_nerf::render::DepthMethod::Threshold(m);
     let crop = residual_nerf::eval::CropRule::Frame;
-    let eval = |depth_only, solid_fraction| {
-        let eval =
-            app::EvalOptions { depth, crop, limit: None, background: opts.background, depth_only, solid_fraction };
+    let eval = |depth_only, solid_fraction, coarse_start| {
+        let (background, limit) = (opts.background, None);
+        let eval = app::EvalOptions { depth, crop, limit, background, depth_only, solid_fraction, coarse_start };
         app::evaluate(isa, &scene, &data, &eval, |_| {})
     };
-    let (full, fast) = (eval(false, 0.0), eval(true, 0.0));
+    let (full, fast) = (eval(false, 0.0, None), eval(true, 0.0, None));
     assert!(full.depth.pixels > 0 && full.psnr.is_finite() && fast.psnr.is_nan());
     assert!(full.depth.holes < full.depth.pixels, "the demo model hits nothing: the comparison would be empty");
     assert_eq!((fast.depth, fast.regions), (full.depth, full.regions));
-    // With a solid fraction it scores what the onboard renderer returns at that fraction (4:
-    // the demo model is faint, and a smaller one drops none of the cells its rays stop in).
+    // With a solid fraction and the coarse start it scores what the onboard renderer returns
+    // at that fraction (4: the demo model is faint, and a smaller one drops none of the cells
+    // its rays stop in) and its default start.
     use residual_nerf::onboard::{DepthKind, DepthRenderer, DepthRequest};
     let mut camera =
         DepthRenderer::load(&models.join("glass_residual.safetensors")).unwrap().solid_fraction(4.0).unwrap();
@@ -206,7 +207,7 @@ fn demo_writes_data_table_sheets_and_models_the_next_commands_read() {
         let gt = f.depth.as_ref().expect("the demo's test views have depth");
         robot.add_frame(&z, gt, k.width, residual_nerf::eval::crop_box(crop, k.width, k.height, f.crop), None);
     }
-    let thinned = eval(true, 4.0);
+    let thinned = eval(true, 4.0, Some(residual_nerf::onboard::COARSE_MARGIN));
     assert_eq!(thinned.depth, robot);
     assert!(thinned.depth != fast.depth, "the demo model's grid has no cell the fraction drops");
 }

@@ -10,6 +10,7 @@ use residual_nerf::data::synth;
 use residual_nerf::field::Nerf;
 use residual_nerf::files::export::depth_ply_bytes;
 use residual_nerf::io::LoadedModel;
+use residual_nerf::onboard::COARSE_MARGIN;
 use residual_nerf::onboard::{DepthKind, DepthMethod, DepthRenderer, DepthRequest, Error, ErrorKind, Extras};
 use residual_nerf::render::{pixel_ray, DensityThreshold, Intrinsics, Pose, ViewRenderer};
 use residual_nerf::simd::Isa;
@@ -76,7 +77,8 @@ fn depth_matches_the_renderer_in_both_conventions_on_any_thread_count() {
 fn skipping_cells_below_a_quarter_of_the_threshold_keeps_the_depth() {
     let nerf = trained();
     let mut exact = DepthRenderer::new(LoadedModel::Nerf(Box::new(nerf.clone()))).exact(true);
-    let mut fast = DepthRenderer::new(LoadedModel::Nerf(Box::new(nerf.clone()))).solid_fraction(0.25).unwrap();
+    let mut fast =
+        DepthRenderer::new(LoadedModel::Nerf(Box::new(nerf.clone()))).solid_fraction(0.25).unwrap().coarse_start(None);
     // The default, printed beside (its limit on this model, docs/DECISIONS.md), not asserted.
     let mut default = DepthRenderer::new(LoadedModel::Nerf(Box::new(nerf.clone())));
     let cell = (nerf.field.config().aabb.size() / nerf.occupancy.config().resolution as f32).max_element();
@@ -112,12 +114,80 @@ fn skipping_cells_below_a_quarter_of_the_threshold_keeps_the_depth() {
     assert!(close as f64 >= 0.95 * pixels as f64, "only {close} of {pixels} pixels within a cell ({cell} m) of exact");
 }
 
+/// The two-pass depth (`ViewRenderer::set_coarse_start`, the onboard default): the first
+/// pass's pixels (even rows and columns, and the last) keep their bits; every other pixel keeps
+/// its bits unless marching from the box finds its solid sample before the start the test
+/// works out by itself (the nearest depth of the first-pass pixels enclosing it, as a range on
+/// its own ray, less the margin), and then reads a farther depth or a hole. Views of even and
+/// odd sizes, margins 0 to 4; few pixels move on this small model, and the default gives the
+/// same bits on one thread and two.
 #[test]
-fn solid_fraction_zero_is_exact_and_bad_fractions_are_refused() {
+fn the_coarse_start_moves_only_pixels_with_a_solid_before_their_start() {
+    let nerf = trained();
+    let isa = Isa::detect();
+    let dt = nerf.occupancy.step_size();
+    let mut reference = ViewRenderer::new();
+    let mut coarse = ViewRenderer::new();
+    let (mut pixels, mut moved_at_default) = (0, 0);
+    for (size, (_, pose)) in [(24, 24), (23, 17), (2, 1)].into_iter().cycle().zip(cameras()) {
+        let k = Intrinsics::from_fov_x(size.0, size.1, 0.9);
+        let (w, h) = (k.width as usize, k.height as usize);
+        let mut want = vec![0.0; w * h];
+        reference.depth(isa, &(&nerf).into(), &k, &pose, M, &mut want);
+        let first = |i: usize, len: usize| i.is_multiple_of(2) || i + 1 == len;
+        let around = |i: usize, len: usize| if first(i, len) { vec![i] } else { vec![i - 1, i + 1] };
+        for margin in [0, 1, 2, 4] {
+            coarse.set_coarse_start(Some(margin));
+            let mut got = vec![0.0; w * h];
+            coarse.depth(isa, &(&nerf).into(), &k, &pose, M, &mut got);
+            for (y, x) in (0..h).flat_map(|y| (0..w).map(move |x| (y, x))) {
+                let p = y * w + x;
+                if got[p].to_bits() == want[p].to_bits() {
+                    continue;
+                }
+                assert!(!(first(x, w) && first(y, h)), "({x}, {y}) of the first pass moved");
+                let zs: Vec<f32> = around(y, h)
+                    .iter()
+                    .flat_map(|&yy| around(x, w).into_iter().map(|xx| yy * w + xx).collect::<Vec<_>>())
+                    .map(|q| want[q])
+                    .collect();
+                assert!(zs.iter().all(|z| z.is_finite()), "({x}, {y}) next to a hole should march from the box");
+                let ray = pixel_ray(&k, &pose, x as u32, y as u32);
+                let start = ray.z_to_range(zs.iter().copied().fold(f32::INFINITY, f32::min)) - margin as f32 * dt;
+                assert!(
+                    ray.z_to_range(want[p]) < start + dt,
+                    "({x}, {y}), margin {margin}: moved from {} to {} though its hit lies past the start",
+                    want[p],
+                    got[p]
+                );
+                assert!(got[p].is_nan() || got[p] > want[p], "({x}, {y}): moved nearer");
+                if margin == COARSE_MARGIN {
+                    moved_at_default += 1;
+                }
+            }
+        }
+        pixels += w * h;
+    }
+    assert!(moved_at_default * 50 <= pixels, "{moved_at_default} of {pixels} pixels moved at the default margin");
+    // One thread and two: the same bits.
+    let z_req = DepthRequest { method: DepthMethod::Threshold(M), kind: DepthKind::Z };
+    let mut one = DepthRenderer::new(LoadedModel::Nerf(Box::new(nerf.clone()))).with_threads(1).unwrap();
+    let mut two = DepthRenderer::new(LoadedModel::Nerf(Box::new(nerf.clone()))).with_threads(2).unwrap();
+    for (k, pose) in cameras() {
+        let n = (k.width * k.height) as usize;
+        let (mut a, mut b) = (vec![0.0; n], vec![0.0; n]);
+        one.depth(&k, &pose, z_req, &mut a).unwrap();
+        two.depth(&k, &pose, z_req, &mut b).unwrap();
+        assert_eq!(bits(&a), bits(&b), "1 and 2 threads differ");
+    }
+}
+
+#[test]
+fn solid_fraction_zero_without_the_coarse_start_is_exact_and_bad_fractions_are_refused() {
     let nerf = trained();
     let new = || DepthRenderer::new(LoadedModel::Nerf(Box::new(nerf.clone())));
     let mut exact = new().exact(true);
-    let mut zero = new().solid_fraction(0.0).unwrap();
+    let mut zero = new().solid_fraction(0.0).unwrap().coarse_start(None);
     let req = DepthRequest { method: DepthMethod::Threshold(M), kind: DepthKind::Z };
     for (k, pose) in cameras() {
         let n = (k.width * k.height) as usize;

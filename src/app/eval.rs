@@ -26,6 +26,8 @@ pub struct EvalReport {
     pub depth_only: bool,
     /// The depth-only path's solid fraction (0: every occupied cell marched).
     pub solid_fraction: f32,
+    /// The depth-only path's coarse start (`None`: every ray marched from the box).
+    pub coarse_start: Option<u32>,
     /// Frames evaluated.
     pub frames: usize,
     /// Frames that had ground-truth depth.
@@ -46,6 +48,7 @@ impl EvalReport {
             "psnr": num(self.psnr), "frames": self.frames, "frames_with_depth": self.frames_with_depth,
             "pixels": self.depth.pixels, "holes": self.depth.holes, "depth_kind": "z", "depth_unit": "m",
             "depth_method": method, "depth_only": self.depth_only, "solid_fraction": self.solid_fraction,
+            "coarse_start": self.coarse_start,
             "regions": self.regions.to_json(),
         })
     }
@@ -71,6 +74,11 @@ pub struct EvalOptions {
     /// ([`crate::onboard::DepthRenderer::solid_fraction`]; `--solid-fraction F`), so what a
     /// robot gets is scored; 0 marches every occupied cell (the full pass's depths).
     pub solid_fraction: f32,
+    /// With `depth_only`: render every other row and column first and start the other rays
+    /// this many lattice steps before their neighbours' depth, as the onboard renderer does
+    /// ([`ViewRenderer::set_coarse_start`]; `--coarse-start N`); `None` marches every ray from
+    /// the box.
+    pub coarse_start: Option<u32>,
 }
 
 /// Renders every view of `data` and scores it.
@@ -81,14 +89,16 @@ pub fn evaluate<M: Model>(
     opts: &EvalOptions,
     mut progress: impl FnMut(usize),
 ) -> EvalReport {
-    let EvalOptions { depth, crop, limit, background, depth_only, solid_fraction } = *opts;
+    let EvalOptions { depth, crop, limit, background, depth_only, solid_fraction, coarse_start } = *opts;
     assert!(!(depth_only && depth == DepthMethod::Expected), "eval: expected depth needs the colour pass");
     assert!(solid_fraction == 0.0 || depth_only, "eval: a solid fraction applies to the depth-only path");
+    assert!(coarse_start.is_none() || depth_only, "eval: a coarse start applies to the depth-only path");
     let m = depth.threshold();
     let thinned = (solid_fraction > 0.0).then(|| scene.occupancy.keep_solid(solid_fraction, m.min_sigma()));
     let depth_scene =
         Scene { model: scene.model, params: scene.params, occupancy: thinned.as_ref().unwrap_or(scene.occupancy) };
     let mut renderer = ViewRenderer::<M>::new();
+    renderer.set_coarse_start(coarse_start);
     let mut errors = DepthErrors::default();
     let mut regions = DepthReport::default();
     let (mut psnr_sum, mut with_depth) = (0.0, 0);
@@ -122,6 +132,7 @@ pub fn evaluate<M: Model>(
         psnr: if depth_only { f64::NAN } else { psnr_sum / data.views.len() as f64 },
         depth_only,
         solid_fraction,
+        coarse_start,
         frames: data.views.len(),
         frames_with_depth: with_depth,
     }
@@ -137,11 +148,13 @@ pub(super) fn run(
     json: bool,
     depth_only: bool,
     solid_fraction: f32,
+    coarse_start: Option<u32>,
 ) -> Result<(), String> {
     let model = load_model(model)?;
     let opts = LoadOptions::default();
     let data = crate::app::load_data(data_dir, split, &opts)?;
-    let eval = EvalOptions { depth, crop, limit, background: opts.background, depth_only, solid_fraction };
+    let eval =
+        EvalOptions { depth, crop, limit, background: opts.background, depth_only, solid_fraction, coarse_start };
     let mut progress = Progress::new("eval", data.views.len() as u64);
     let tick = |i: usize| progress.update(i as u64, "views rendered");
     let isa = Isa::detect();

@@ -81,9 +81,21 @@ pub fn run(command: Command) -> Result<(), Failure> {
             set_threads(threads)?;
             render::run(&model, &data, &split, depth, depth_only, &out)?;
         }
-        Command::Eval { model, data, split, depth, crop, limit, json, depth_only, solid_fraction, threads } => {
+        Command::Eval {
+            model,
+            data,
+            split,
+            depth,
+            crop,
+            limit,
+            json,
+            depth_only,
+            solid_fraction,
+            coarse_start,
+            threads,
+        } => {
             set_threads(threads)?;
-            eval::run(&model, &data, &split, depth, crop, limit, json, depth_only, solid_fraction)?;
+            eval::run(&model, &data, &split, depth, crop, limit, json, depth_only, solid_fraction, coarse_start)?;
         }
         Command::Bench { json, reps, log2t, threads, models, data, background_data, scene } => {
             set_threads(threads)?;

@@ -52,6 +52,9 @@ pub enum Command {
         /// The depth-only path's solid fraction, as the onboard renderer's
         /// (`--solid-fraction F`, with `--depth-only`; default 0: every occupied cell).
         solid_fraction: f32,
+        /// The depth-only path's two passes, as the onboard renderer's: lattice steps of slack
+        /// before the neighbours' depth (`--coarse-start N|off`, with `--depth-only`; default off).
+        coarse_start: Option<u32>,
         /// Worker threads (`--threads`).
         threads: Option<usize>,
     },

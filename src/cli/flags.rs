@@ -66,6 +66,7 @@ pub(super) const FLAGS: &[Flag] = &[
     Flag { name: "depth", commands: &["render", "eval"], setting: false },
     Flag { name: "depth-only", commands: &["render", "eval"], setting: false },
     Flag { name: "solid-fraction", commands: &["eval"], setting: false },
+    Flag { name: "coarse-start", commands: &["eval"], setting: false },
     Flag { name: "m", commands: &["render", "eval", "compare"], setting: false },
     Flag { name: "m-raw", commands: &["render", "eval", "compare"], setting: false },
     Flag { name: "crop", commands: &["eval"], setting: false },
@@ -108,6 +109,8 @@ pub(super) struct Flags {
     pub(super) depth_only: bool,
     /// `--solid-fraction F`.
     pub(super) solid_fraction: Option<f32>,
+    /// `--coarse-start N|off` (`Some(None)`: off).
+    pub(super) coarse_start: Option<Option<u32>>,
     pub(super) background: Option<PathBuf>,
     pub(super) mix: Option<String>,
     pub(super) density_mix: Option<String>,
@@ -331,6 +334,15 @@ impl Flags {
                     return Err(err(format!("--solid-fraction: {v} is outside [0, 16]")));
                 }
                 self.solid_fraction = Some(v);
+            }
+            "coarse-start" => {
+                let s = text(p, name)?;
+                self.coarse_start = Some(match s.as_str() {
+                    "off" => None,
+                    _ => Some(s.parse::<u32>().ok().filter(|&n| n <= 64).ok_or_else(|| {
+                        err(format!("--coarse-start: '{s}' is not off or a whole number of lattice steps in 0..=64"))
+                    })?),
+                });
             }
             "fixed-background" => self.fixed_background = true,
             "data" => self.data = Some(path(p, name)?),

@@ -142,6 +142,12 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
                 }
                 (s, _) => s.unwrap_or(0.0),
             },
+            coarse_start: match (f.coarse_start, f.depth_only) {
+                (Some(_), false) => {
+                    return Err(err("eval: --coarse-start starts the depth-only path's rays; add --depth-only"))
+                }
+                (c, _) => c.flatten(),
+            },
             threads,
         },
         "compare" => Command::Compare(CompareArgs {
@@ -299,6 +305,8 @@ mod tests {
             ("compare --background b --scene s --out o --m-sweep 3,x", "--m-sweep: 'x'"),
             ("compare --background b --scene s --out o --depth expected", "unexpected argument '--depth'"),
             ("eval --model m --data d --solid-fraction 0.5", "add --depth-only"),
+            ("eval --model m --data d --coarse-start 2", "add --depth-only"),
+            ("eval --model m --data d --depth-only --coarse-start near", "--coarse-start: 'near' is not off"),
             ("eval --model m --data d --depth-only --solid-fraction -1", "--solid-fraction: -1 is outside"),
             ("train --data d --out m --pixel-rays 0", "--pixel-rays: expected"),
             ("train --data d --out m --pixel-rays 3", "--pixel-rays: 1024 rays per step"),

@@ -42,11 +42,14 @@ commands:
          frame) and RGB of the split's views (--depth-only: threshold depth and an uncoloured
          point cloud, without the colour pass)
   eval   --model MODEL --data DIR [--split NAME] [--depth threshold|expected] [--m M | --m-raw S]
-         [--crop frame|full|HALF] [--limit METRES] [--json] [--depth-only [--solid-fraction F]] [--threads N]
+         [--crop frame|full|HALF] [--limit METRES] [--json] [--depth-only [--solid-fraction F] [--coarse-start N|off]]
+         [--threads N]
          depth MAE / RMSE / hole rate inside the crops, and PSNR (default split: test;
          --depth-only: the same threshold-depth figures without the colour pass, no PSNR;
          --solid-fraction F: as the onboard renderer, skip the cells whose occupancy stayed
-         below F·m, default 0: every occupied cell)
+         below F·m, default 0: every occupied cell; --coarse-start N: as the onboard renderer,
+         render every other row and column first and start the other rays N lattice steps
+         before their neighbours' depth, default off: every ray from the box)
   compare --background DIR --scene DIR [--scene DIR ...] --out DIR [--background-model MODEL]
          [--methods dex,finetune,residual-paper,residual,...] [--scene-views N] [--steps N] [--rays N]
          [--log2t N] [--seed S] [--eval-every N] [--m M | --m-raw S] [--m-sweep M,M,...] [--threads N]

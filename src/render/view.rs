@@ -145,6 +145,14 @@ impl<M: Model> Default for Worker<M> {
 /// its core's cache. Tiles do not depend on the thread count, and neither do the results.
 pub struct ViewRenderer<M: Model = NerfField> {
     workers: Vec<Worker<M>>,
+    /// The pixels of the pass being rendered, in output order, and the z-depth each one's ray
+    /// may start marching from (empty: every ray from the box; see [`ViewRenderer::set_coarse_start`]).
+    pixels: Vec<u32>,
+    starts: Vec<f32>,
+    /// A pass's threshold depths in `pixels` order, before they are scattered to the view.
+    pass_z: Vec<f32>,
+    /// Lattice steps of slack before the start a coarse pass sets ([`ViewRenderer::set_coarse_start`]).
+    coarse_margin: Option<u32>,
     /// Samples per ray per round of the depth-only path ([`ViewRenderer::set_depth_round`]).
     depth_round: usize,
     /// Transmittance below which a ray of the full path stops compositing
@@ -173,6 +181,10 @@ impl<M: Model> Default for ViewRenderer<M> {
     fn default() -> Self {
         ViewRenderer {
             workers: Vec::new(),
+            pixels: Vec::new(),
+            starts: Vec::new(),
+            pass_z: Vec::new(),
+            coarse_margin: None,
             depth_round: DEPTH_SEGMENT,
             stop: EARLY_STOP_TRANSMITTANCE,
             fill: StopFill::Background,
@@ -226,6 +238,22 @@ impl<M: Model> ViewRenderer<M> {
         self.fill = fill;
     }
 
+    /// `Some(margin)`: [`ViewRenderer::depth`] renders in two passes. The first renders the
+    /// pixels of even rows and columns (and the last row and column) as usual; the second
+    /// starts each other pixel's ray `margin` lattice steps before the nearest threshold hit of
+    /// the first pass's pixels around it (the two, or four, that enclose it), read as the
+    /// same z-depth on its own ray, and marches from there; next to a first-pass hole it
+    /// marches from the box. A pixel's depth is the same bits as without it whenever its ray
+    /// has no solid sample before that start: everywhere on surfaces smooth at the scale of
+    /// two pixels, since a pixel between two others on a plane lies between their depths. What
+    /// it can miss is a solid thinner than a pixel standing in front of all four (a wire or
+    /// an edge-on sheet along an odd row or column). The rays of the second pass skip the
+    /// empty air and most of the occupied cell in front of their surface. `None` (the
+    /// default): every ray marches from where it enters the box.
+    pub fn set_coarse_start(&mut self, margin: Option<u32>) {
+        self.coarse_margin = margin;
+    }
+
     /// Threshold z-depth of every pixel into `z` (`width × height`), NaN for holes.
     pub fn depth(
         &mut self,
@@ -238,8 +266,68 @@ impl<M: Model> ViewRenderer<M> {
     ) {
         let n = (k.width * k.height) as usize;
         assert_eq!(z.len(), n, "render: depth buffer is not width × height");
-        let out = FullOutputs { rgb: &mut [], expected_z: &mut [], threshold_z: z, beta: &mut [] };
-        self.run(isa, scene, k, pose, [0.0; 3], m, false, out);
+        let Some(margin) = self.coarse_margin else {
+            self.all_pixels(n);
+            let out = FullOutputs { rgb: &mut [], expected_z: &mut [], threshold_z: z, beta: &mut [] };
+            self.run(isa, scene, k, pose, [0.0; 3], m, false, 0.0, out);
+            return;
+        };
+        let (w, h) = (k.width as usize, k.height as usize);
+        // A row or column of the first pass: even, or the last (so every other pixel has one
+        // on each side).
+        let first = |i: usize, len: usize| i.is_multiple_of(2) || i + 1 == len;
+        self.pixels.clear();
+        self.starts.clear();
+        for y in (0..h).filter(|&y| first(y, h)) {
+            self.pixels.extend((0..w).filter(|&x| first(x, w)).map(|x| (y * w + x) as u32));
+        }
+        self.pass(isa, scene, k, pose, m, 0.0, z);
+        self.pixels.clear();
+        for y in 0..h {
+            for x in (0..w).filter(|&x| !(first(x, w) && first(y, h))) {
+                // The first pass's pixels enclosing (x, y): its own row or column where that
+                // is a first-pass one, else the ones either side.
+                let around = |i: usize, len: usize| if first(i, len) { [i, i] } else { [i - 1, i + 1] };
+                let zs = around(y, h).into_iter().flat_map(|yy| around(x, w).map(|xx| z[yy * w + xx]));
+                // A hole (NaN) around: no bound, march from the box.
+                let near =
+                    if zs.clone().any(f32::is_nan) { f32::NEG_INFINITY } else { zs.fold(f32::INFINITY, f32::min) };
+                self.pixels.push((y * w + x) as u32);
+                self.starts.push(near);
+            }
+        }
+        let slack = margin as f32 * scene.occupancy.step_size();
+        self.pass(isa, scene, k, pose, m, slack, z);
+    }
+
+    /// Renders the depth of `self.pixels` (starting at `self.starts`, `slack` before them) and
+    /// writes each into its place in the view's `z`.
+    #[allow(clippy::too_many_arguments)]
+    fn pass(
+        &mut self,
+        isa: Isa,
+        scene: &Scene<'_, M>,
+        k: &Intrinsics,
+        pose: &Pose,
+        m: DensityThreshold,
+        slack: f32,
+        z: &mut [f32],
+    ) {
+        let mut pass_z = std::mem::take(&mut self.pass_z);
+        pass_z.resize(self.pixels.len(), 0.0);
+        let out = FullOutputs { rgb: &mut [], expected_z: &mut [], threshold_z: &mut pass_z, beta: &mut [] };
+        self.run(isa, scene, k, pose, [0.0; 3], m, false, slack, out);
+        for (&p, &d) in self.pixels.iter().zip(&pass_z) {
+            z[p as usize] = d;
+        }
+        self.pass_z = pass_z;
+    }
+
+    /// Every pixel of an `n`-pixel view in order, each ray marched from the box.
+    fn all_pixels(&mut self, n: usize) {
+        self.pixels.clear();
+        self.pixels.extend(0..n as u32);
+        self.starts.clear();
     }
 
     /// Colour (over `background`), expected and threshold z-depth of every pixel.
@@ -262,10 +350,13 @@ impl<M: Model> ViewRenderer<M> {
         ] {
             assert!(len == n || len == 0, "render: {what} buffer is not width × height");
         }
-        self.run(isa, scene, k, pose, background, m, true, out);
+        self.all_pixels(n);
+        self.run(isa, scene, k, pose, background, m, true, 0.0, out);
     }
 
-    /// Hands the view's tiles out to one worker per thread of the current rayon pool.
+    /// Hands the tiles of `self.pixels` (outputs in their order) out to one worker per thread
+    /// of the current rayon pool; a ray with a start in `self.starts` marches from `slack`
+    /// before it.
     #[allow(clippy::too_many_arguments)]
     fn run(
         &mut self,
@@ -276,9 +367,10 @@ impl<M: Model> ViewRenderer<M> {
         background: [f32; 3],
         m: DensityThreshold,
         full: bool,
+        slack: f32,
         out: FullOutputs<'_>,
     ) {
-        let n = (k.width * k.height) as usize;
+        let n = self.pixels.len();
         let tile = (TILE_PIXELS / k.width as usize).max(1) * k.width as usize;
         let first = if full { FIRST_SEGMENT } else { self.depth_round };
         let early = (self.stop, self.fill);
@@ -295,9 +387,11 @@ impl<M: Model> ViewRenderer<M> {
             *start += len;
             (len > 0).then(|| (s..s + len, rest.take_front(len)))
         };
+        let (pixels, starts) = (&self.pixels, &self.starts);
         self.workers[..threads].par_iter_mut().for_each(|w| {
-            while let Some((pixels, out)) = next_tile() {
-                w.run_tile(isa, scene, k, pose, pixels, m, full, first, early, background, out);
+            while let Some((range, out)) = next_tile() {
+                let start = (starts.len() == n).then(|| (&starts[range.clone()], slack));
+                w.run_tile(isa, scene, k, pose, &pixels[range], start, m, full, first, early, background, out);
             }
         });
     }
@@ -305,7 +399,9 @@ impl<M: Model> ViewRenderer<M> {
 
 impl<M: Model> Worker<M> {
     /// Marches and evaluates pixels `pixels` to completion and writes their outputs; `first`
-    /// samples per ray in the first round (the full path doubles it each round).
+    /// samples per ray in the first round (the full path doubles it each round). With
+    /// `start = (z, slack)` a pixel's ray marches from the lattice step before `slack` ahead
+    /// of where it reaches z-depth `z[i]` (from the box where that is −∞ or before it).
     #[allow(clippy::too_many_arguments)]
     fn run_tile(
         &mut self,
@@ -313,7 +409,8 @@ impl<M: Model> Worker<M> {
         scene: &Scene<'_, M>,
         k: &Intrinsics,
         pose: &Pose,
-        pixels: std::ops::Range<usize>,
+        pixels: &[u32],
+        start: Option<(&[f32], f32)>,
         m: DensityThreshold,
         full: bool,
         first: usize,
@@ -328,16 +425,28 @@ impl<M: Model> Worker<M> {
         self.active.clear();
         self.beta_acc.clear();
         self.beta_acc.resize(pixels.len(), 0.0);
-        for p in pixels {
-            let ray = pixel_ray(k, pose, p as u32 % k.width, p as u32 / k.width);
+        let dt = occ.step_size();
+        for (i, &p) in pixels.iter().enumerate() {
+            let ray = pixel_ray(k, pose, p % k.width, p / k.width);
             let span = occ.span(ray.origin, ray.dir).unwrap_or(RaySpan::EMPTY);
-            if span.steps > 0 {
+            // The lattice step whose sample lies `slack` before the start, if that is inside
+            // the span; marching from it visits the same samples as from the box, less those
+            // before it.
+            let next = start.map_or(0, |(z, slack)| {
+                let from = (ray.z_to_range(z[i]) - slack - span.near) / dt;
+                if from > 0.0 {
+                    (from.floor() as u32).min(span.steps)
+                } else {
+                    0
+                }
+            });
+            if next < span.steps {
                 self.active.push(self.states.len() as u32);
             }
             self.states.push(RayState {
                 ray,
                 span,
-                next: 0,
+                next,
                 taken: 0,
                 hit: None,
                 transmittance: 1.0,
