@@ -6,6 +6,9 @@
 //! - [`ViewRenderer::depth`] — threshold depth only: evaluates only σ (the density networks'
 //!   first outputs, [`Model::chunk_density_only`], a chunk at a time on the worker's thread)
 //!   and stops each ray at its first solid sample (the robot's hot path), 2 samples per round;
+//!   with a coarse start ([`ViewRenderer::set_coarse_start`], the onboard default) in two
+//!   passes, every other row and column first and the other rays started just before the
+//!   depth their neighbours found;
 //! - [`ViewRenderer::full`] — colour, expected depth and threshold depth (and β): the training
 //!   step's chunk path a chunk at a time on the worker's thread — σ of every marched sample,
 //!   colour and β only of the samples a ray composites (before it turns opaque, `T < 1e-4`, as
