@@ -47,6 +47,9 @@ const CHUNK: usize = 256;
 const FIRST_SEGMENT: usize = 16;
 const MAX_SEGMENT: usize = 128;
 
+/// A view's camera, pose and depth threshold.
+type View<'a> = (&'a Intrinsics, &'a Pose, DensityThreshold);
+
 /// Per-ray marching state.
 #[derive(Clone, Copy)]
 struct RayState {
@@ -284,7 +287,7 @@ impl<M: Model> ViewRenderer<M> {
         for y in (0..h).filter(|&y| first(y, h)) {
             self.pixels.extend((0..w).filter(|&x| first(x, w)).map(|x| (y * w + x) as u32));
         }
-        self.pass(isa, scene, k, pose, m, 0.0, z);
+        self.pass(isa, scene, (k, pose, m), 0.0, z);
         self.pixels.clear();
         for y in 0..h {
             for x in (0..w).filter(|&x| !(first(x, w) && first(y, h))) {
@@ -300,22 +303,13 @@ impl<M: Model> ViewRenderer<M> {
             }
         }
         let slack = margin as f32 * scene.occupancy.step_size();
-        self.pass(isa, scene, k, pose, m, slack, z);
+        self.pass(isa, scene, (k, pose, m), slack, z);
     }
 
-    /// Renders the depth of `self.pixels` (starting at `self.starts`, `slack` before them) and
-    /// writes each into its place in the view's `z`.
-    #[allow(clippy::too_many_arguments)]
-    fn pass(
-        &mut self,
-        isa: Isa,
-        scene: &Scene<'_, M>,
-        k: &Intrinsics,
-        pose: &Pose,
-        m: DensityThreshold,
-        slack: f32,
-        z: &mut [f32],
-    ) {
+    /// Renders the depth of `self.pixels` in the view `(k, pose)` at threshold `m` (starting at
+    /// `self.starts`, `slack` before them) and writes each into its place in the view's `z`.
+    fn pass(&mut self, isa: Isa, scene: &Scene<'_, M>, view: View<'_>, slack: f32, z: &mut [f32]) {
+        let (k, pose, m) = view;
         let mut pass_z = std::mem::take(&mut self.pass_z);
         pass_z.resize(self.pixels.len(), 0.0);
         let out = FullOutputs { rgb: &mut [], expected_z: &mut [], threshold_z: &mut pass_z, beta: &mut [] };
