@@ -11,7 +11,9 @@
 //! three of its test split (intrinsics and poses); otherwise three 200×200 cameras around the
 //! scene box. Each view is rendered 9 times; the median time is printed (the first frame also
 //! grows the renderer's buffers). SOLID_FRACTION sets `DepthRenderer::solid_fraction` (default
-//! 0.5); every view is also rendered exactly (`exact(true)`) to show what it changes.
+//! 0.5), beside the default two-pass start (`DepthRenderer::coarse_start`); every view is also
+//! rendered exactly (`exact(true)`: every occupied cell, every ray from the box) to show what
+//! they change.
 
 use residual_nerf::app::demo_config;
 use residual_nerf::data::{workspace, Dataset, LoadOptions};
@@ -40,8 +42,8 @@ fn main() -> Result<(), String> {
     };
 
     // Once, at start-up: load the model and size the renderer's thread pool. (A second,
-    // exact renderer — every occupied cell marched — is only here to show what the default's
-    // cell skipping changes.)
+    // exact renderer — every occupied cell of every ray marched from the box — is only here to
+    // show what the default's cell skipping and two-pass start change.)
     let mut camera = DepthRenderer::load(&model)?.with_threads(2)?.solid_fraction(fraction)?;
     let mut exact = DepthRenderer::load(&model)?.with_threads(2)?.exact(true);
     let b = camera.scene_box();
