@@ -81,8 +81,6 @@ pub struct DepthRenderer {
     /// fraction and the threshold's σ (built once per pair).
     solid: Option<((f32, f32), OccupancyGrid)>,
     solid_fraction: f32,
-    /// Lattice steps of slack of the two-pass depth ([`DepthRenderer::coarse_start`]).
-    coarse_margin: Option<u32>,
     /// The last intrinsics whose lens passed [`crate::geometry::Distortion::check`]: a robot
     /// renders one camera frame after frame, so the check runs once per camera, not per frame.
     checked_lens: Option<Intrinsics>,
@@ -107,10 +105,10 @@ impl DepthRenderer {
             isa: Isa::detect(),
             solid: None,
             solid_fraction: SOLID_FRACTION,
-            coarse_margin: Some(COARSE_MARGIN),
             checked_lens: None,
             background: [1.0; 3],
         }
+        .coarse_start(Some(COARSE_MARGIN))
     }
 
     /// `true`: threshold depth marches every occupied cell of every ray from where it enters
@@ -118,11 +116,12 @@ impl DepthRenderer {
     /// `solid_fraction(0.0)` and `coarse_start(None)`); `false` (the default):
     /// `solid_fraction(SOLID_FRACTION)` and `coarse_start(Some(COARSE_MARGIN))`.
     pub fn exact(mut self, exact: bool) -> DepthRenderer {
-        (self.solid_fraction, self.coarse_margin) = match exact {
+        let margin;
+        (self.solid_fraction, margin) = match exact {
             true => (0.0, None),
             false => (SOLID_FRACTION, Some(COARSE_MARGIN)),
         };
-        self
+        self.coarse_start(margin)
     }
 
     /// `Some(margin)`: threshold depth renders the pixels of every other row and column
@@ -135,7 +134,8 @@ impl DepthRenderer {
     /// wide along an odd row or column; such a pixel reads the surface behind). `None`: every
     /// ray from the box. Default [`COARSE_MARGIN`]; colour, β and expected depth ignore it.
     pub fn coarse_start(mut self, margin: Option<u32>) -> DepthRenderer {
-        self.coarse_margin = margin;
+        self.nerf.set_coarse_start(margin);
+        self.residual.set_coarse_start(margin);
         self
     }
 
@@ -239,8 +239,6 @@ impl DepthRenderer {
             _ => None,
         };
         let fraction = self.solid_fraction;
-        self.nerf.set_coarse_start(self.coarse_margin);
-        self.residual.set_coarse_start(self.coarse_margin);
         let DepthRenderer { model, nerf, residual, pool, solid, .. } = self;
         let model = &*model;
         let occupancy = match model {

@@ -128,7 +128,7 @@ fn the_coarse_start_moves_only_pixels_with_a_solid_before_their_start() {
     let dt = nerf.occupancy.step_size();
     let mut reference = ViewRenderer::new();
     let mut coarse = ViewRenderer::new();
-    let (mut pixels, mut moved_at_default) = (0, 0);
+    let (mut pixels, mut moved_at_default, mut moved_at_zero) = (0, 0, 0);
     for (size, (_, pose)) in [(24, 24), (23, 17), (2, 1)].into_iter().cycle().zip(cameras()) {
         let k = Intrinsics::from_fov_x(size.0, size.1, 0.9);
         let (w, h) = (k.width as usize, k.height as usize);
@@ -136,6 +136,13 @@ fn the_coarse_start_moves_only_pixels_with_a_solid_before_their_start() {
         reference.depth(isa, &(&nerf).into(), &k, &pose, M, &mut want);
         let first = |i: usize, len: usize| i.is_multiple_of(2) || i + 1 == len;
         let around = |i: usize, len: usize| if first(i, len) { vec![i] } else { vec![i - 1, i + 1] };
+        let neighbours = |x: usize, y: usize| -> Vec<f32> {
+            around(y, h)
+                .iter()
+                .flat_map(|&yy| around(x, w).into_iter().map(move |xx| yy * w + xx))
+                .map(|q| want[q])
+                .collect()
+        };
         for margin in [0, 1, 2, 4] {
             coarse.set_coarse_start(Some(margin));
             let mut got = vec![0.0; w * h];
@@ -146,11 +153,7 @@ fn the_coarse_start_moves_only_pixels_with_a_solid_before_their_start() {
                     continue;
                 }
                 assert!(!(first(x, w) && first(y, h)), "({x}, {y}) of the first pass moved");
-                let zs: Vec<f32> = around(y, h)
-                    .iter()
-                    .flat_map(|&yy| around(x, w).into_iter().map(|xx| yy * w + xx).collect::<Vec<_>>())
-                    .map(|q| want[q])
-                    .collect();
+                let zs = neighbours(x, y);
                 assert!(zs.iter().all(|z| z.is_finite()), "({x}, {y}) next to a hole should march from the box");
                 let ray = pixel_ray(&k, &pose, x as u32, y as u32);
                 let start = ray.z_to_range(zs.iter().copied().fold(f32::INFINITY, f32::min)) - margin as f32 * dt;
@@ -164,11 +167,16 @@ fn the_coarse_start_moves_only_pixels_with_a_solid_before_their_start() {
                 if margin == COARSE_MARGIN {
                     moved_at_default += 1;
                 }
+                if margin == 0 {
+                    moved_at_zero += 1;
+                }
             }
         }
         pixels += w * h;
     }
     assert!(moved_at_default * 50 <= pixels, "{moved_at_default} of {pixels} pixels moved at the default margin");
+    // The start takes effect: on this foggy model some ray started at margin 0 passes a speck.
+    assert!(moved_at_zero > 0, "no pixel moved at margin 0: the second pass's start is not used");
     // One thread and two: the same bits.
     let z_req = DepthRequest { method: DepthMethod::Threshold(M), kind: DepthKind::Z };
     let mut one = DepthRenderer::new(LoadedModel::Nerf(Box::new(nerf.clone()))).with_threads(1).unwrap();

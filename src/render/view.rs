@@ -252,8 +252,8 @@ impl<M: Model> ViewRenderer<M> {
     /// marches from the box. A pixel's depth is the same bits as without it whenever its ray
     /// has no solid sample before that start: everywhere on surfaces smooth at the scale of
     /// two pixels, since a pixel between two others on a plane lies between their depths. What
-    /// it can miss is a solid thinner than a pixel standing in front of all four (a wire or
-    /// an edge-on sheet along an odd row or column). The rays of the second pass skip the
+    /// it can miss is a solid thinner than two pixels standing in front of all of them (a wire
+    /// or an edge-on sheet along an odd row or column). The rays of the second pass skip the
     /// empty air and most of the occupied cell in front of their surface. `None` (the
     /// default): every ray marches from where it enters the box.
     pub fn set_coarse_start(&mut self, margin: Option<u32>) {
@@ -288,16 +288,16 @@ impl<M: Model> ViewRenderer<M> {
             self.pixels.extend((0..w).filter(|&x| first(x, w)).map(|x| (y * w + x) as u32));
         }
         self.pass(isa, scene, (k, pose, m), 0.0, z);
+        // The first pass's pixels enclosing (x, y): its own row or column where that is a
+        // first-pass one, else the ones either side.
+        let around = |i: usize, len: usize| if first(i, len) { [i, i] } else { [i - 1, i + 1] };
         self.pixels.clear();
         for y in 0..h {
             for x in (0..w).filter(|&x| !(first(x, w) && first(y, h))) {
-                // The first pass's pixels enclosing (x, y): its own row or column where that
-                // is a first-pass one, else the ones either side.
-                let around = |i: usize, len: usize| if first(i, len) { [i, i] } else { [i - 1, i + 1] };
+                // The nearest of their depths; a hole (NaN) among them counts as −∞: no bound,
+                // march from the box.
                 let zs = around(y, h).into_iter().flat_map(|yy| around(x, w).map(|xx| z[yy * w + xx]));
-                // A hole (NaN) around: no bound, march from the box.
-                let near =
-                    if zs.clone().any(f32::is_nan) { f32::NEG_INFINITY } else { zs.fold(f32::INFINITY, f32::min) };
+                let near = zs.map(|d| if d.is_nan() { f32::NEG_INFINITY } else { d }).fold(f32::INFINITY, f32::min);
                 self.pixels.push((y * w + x) as u32);
                 self.starts.push(near);
             }
