@@ -14,6 +14,8 @@ use residual_nerf::onboard::COARSE_MARGIN;
 use residual_nerf::onboard::{DepthKind, DepthMethod, DepthRenderer, DepthRequest, Error, ErrorKind, Extras};
 use residual_nerf::render::{pixel_ray, DensityThreshold, Intrinsics, Pose, ViewRenderer};
 use residual_nerf::simd::Isa;
+use std::ffi::OsString;
+use std::path::Path;
 
 fn trained() -> Nerf {
     common::trained_tabletop()
@@ -174,7 +176,10 @@ fn the_coarse_start_moves_only_pixels_with_a_solid_before_their_start() {
         }
         pixels += w * h;
     }
-    assert!(moved_at_default * 50 <= pixels, "{moved_at_default} of {pixels} pixels moved at the default margin");
+    // This 40-step model is foggy and its 24-px views see 37 mrad a pixel (the dev views 3.5), so
+    // a speck or a bump of a step over one pixel is far more common here than on the dev models,
+    // where ~1% of the pixels move at the default (docs/DECISIONS.md).
+    assert!(moved_at_default * 40 <= pixels, "{moved_at_default} of {pixels} pixels moved at the default margin");
     // The start takes effect: on this foggy model some ray started at margin 0 passes a speck.
     assert!(moved_at_zero > 0, "no pixel moved at margin 0: the second pass's start is not used");
     // One thread and two: the same bits.
@@ -291,4 +296,55 @@ fn ply_points_lie_where_their_depth_says() {
         assert!(p.x.abs() < 5.0 && p.y.abs() < 5.0);
     }
     assert_eq!(&body[12..15], &[0, 128, 255]);
+}
+
+/// `rnerf render --depth-only` with `--solid-fraction` and `--coarse-start` writes what the
+/// onboard renderer returns with the same settings, bit for bit (its `.npy` files, NaN holes
+/// included): the robot's defaults, and margin 0 on every occupied cell (where a ray of this
+/// foggy model starts past a speck, so a renderer that ignored the start would write the depth
+/// marched from the box, which is checked to differ).
+#[test]
+fn rnerf_render_with_the_onboard_settings_writes_the_onboard_depth() {
+    use residual_nerf::data::{Dataset, LoadOptions};
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("onboard_render");
+    let _ = std::fs::remove_dir_all(&dir);
+    let (model, data) = (dir.join("m.safetensors"), dir.join("data"));
+    std::fs::create_dir_all(&dir).unwrap();
+    residual_nerf::io::save_nerf(&model, &trained(), &[]).unwrap();
+    synth::tabletop(24, 3, 0.3).write_split(&data, "test").unwrap();
+    let views = Dataset::load(&data, "test", &LoadOptions { ground_truth: false, ..Default::default() }).unwrap();
+    let (model_s, data_s) = (model.to_str().unwrap(), data.to_str().unwrap());
+    let render = |name: &str, flags: &[&str]| -> Vec<Vec<u8>> {
+        let out = dir.join(name);
+        let args = [&["render", "--model", model_s, "--data", data_s, "--out", out.to_str().unwrap()][..], flags];
+        let command = residual_nerf::cli::parse(args.concat().iter().map(OsString::from)).unwrap();
+        residual_nerf::app::run(command).map_err(|f| f.message).unwrap();
+        let stem =
+            |f: &residual_nerf::data::FrameInfo| f.image_path.file_stem().unwrap().to_string_lossy().into_owned();
+        views.frames.iter().map(|f| std::fs::read(out.join(format!("{}_depth.npy", stem(f)))).unwrap()).collect()
+    };
+    let onboard = |camera: DepthRenderer| -> Vec<Vec<u8>> {
+        let mut camera = camera.with_threads(2).unwrap();
+        let request = DepthRequest { method: DepthMethod::Threshold(M), kind: DepthKind::Z };
+        let views = views.views.iter();
+        views
+            .map(|v| {
+                let k = &v.intrinsics;
+                let mut z = vec![0.0; (k.width * k.height) as usize];
+                camera.depth(k, &v.pose, request, &mut z).unwrap();
+                residual_nerf::files::export::depth_npy_bytes(&z, k.width, k.height)
+            })
+            .collect()
+    };
+    let load = || DepthRenderer::load(&model).unwrap();
+    let (fraction, margin) = (residual_nerf::onboard::SOLID_FRACTION.to_string(), COARSE_MARGIN.to_string());
+    let robot =
+        render("robot", &["--depth-only", "--m", "3", "--solid-fraction", &fraction, "--coarse-start", &margin]);
+    assert!(robot == onboard(load()), "the defaults: not the onboard renderer's depth");
+    let at_zero = render("margin0", &["--depth-only", "--m", "3", "--solid-fraction", "0", "--coarse-start", "0"]);
+    assert!(at_zero == onboard(load().solid_fraction(0.0).unwrap().coarse_start(Some(0))), "margin 0");
+    let exact = render("exact", &["--depth-only", "--m", "3"]);
+    assert!(exact == onboard(load().exact(true)), "exact: not the onboard renderer's depth");
+    assert!(exact != at_zero, "margin 0 moved no pixel of this model: the start's use is not shown");
+    assert!(exact != robot, "the defaults moved no pixel of this model: the comparison shows little");
 }

@@ -77,9 +77,9 @@ pub fn run(command: Command) -> Result<(), Failure> {
             set_threads(args.threads)?;
             train::run(&args)?;
         }
-        Command::Render { model, data, out, split, depth, depth_only, threads } => {
+        Command::Render { model, data, out, split, depth, depth_only, solid_fraction, coarse_start, threads } => {
             set_threads(threads)?;
-            render::run(&model, &data, &split, depth, depth_only, &out)?;
+            render::run(&model, &data, &split, depth, depth_only, solid_fraction, coarse_start, &out)?;
         }
         Command::Eval {
             model,

@@ -1,7 +1,9 @@
 //! `rnerf render`: depth (EXR metres, 16-bit PNG mm, .npy metres, colourised PNG), a coloured
 //! world-frame point cloud (PLY), RGB and the camera of every view of a split, into an output
 //! folder; with `--depth-only`, threshold depth through the depth-only path (no colour pass):
-//! the depth files, an uncoloured point cloud and the camera.
+//! the depth files, an uncoloured point cloud and the camera, marched as evaluation marches
+//! unless `--solid-fraction` and `--coarse-start` ask for the onboard renderer's trades (as
+//! `rnerf eval --depth-only` takes them).
 
 use super::Progress;
 use crate::data::{Dataset, LoadOptions};
@@ -20,6 +22,8 @@ pub(super) fn run(
     split: &str,
     depth: DepthMethod,
     depth_only: bool,
+    solid_fraction: f32,
+    coarse_start: Option<u32>,
     out: &Path,
 ) -> Result<(), String> {
     if out.exists() && !out.is_dir() {
@@ -30,29 +34,38 @@ pub(super) fn run(
     let data = crate::app::load_data(data_dir, split, &opts)?;
     // Created once the inputs have been read and checked, so a bad input leaves nothing behind.
     std::fs::create_dir_all(out).map_err(|e| format!("{}: --out: cannot create: {e}", out.display()))?;
+    let how = How { depth, depth_only, solid_fraction, coarse_start, background: opts.background };
     match &model {
-        LoadedModel::Nerf(n) => render_all(&Scene::from(&**n), &data, depth, depth_only, out, opts.background, false),
-        LoadedModel::Residual(r) => {
-            render_all(&Scene::from(&**r), &data, depth, depth_only, out, opts.background, true)
-        }
+        LoadedModel::Nerf(n) => render_all(&Scene::from(&**n), &data, &how, out, false),
+        LoadedModel::Residual(r) => render_all(&Scene::from(&**r), &data, &how, out, true),
     }
+}
+
+/// How `rnerf render` renders: the depth method; the depth-only path and its onboard trades
+/// (the solid fraction and the coarse start, as [`super::EvalOptions`] has them); the colour
+/// behind the scene.
+struct How {
+    depth: DepthMethod,
+    depth_only: bool,
+    solid_fraction: f32,
+    coarse_start: Option<u32>,
+    background: [f32; 3],
 }
 
 /// Renders and writes every view; `beta`: also `<name>_beta.png` (where the scene changed);
 /// `depth_only`: threshold depth alone (no RGB, β or point colours).
-fn render_all<M: Model>(
-    scene: &Scene<'_, M>,
-    data: &Dataset,
-    depth: DepthMethod,
-    depth_only: bool,
-    out: &Path,
-    background: [f32; 3],
-    beta: bool,
-) -> Result<(), String> {
+fn render_all<M: Model>(scene: &Scene<'_, M>, data: &Dataset, how: &How, out: &Path, beta: bool) -> Result<(), String> {
+    let How { depth, depth_only, solid_fraction, coarse_start, background } = *how;
+    assert!(solid_fraction == 0.0 || depth_only, "render: a solid fraction applies to the depth-only path");
+    assert!(coarse_start.is_none() || depth_only, "render: a coarse start applies to the depth-only path");
     let isa = Isa::detect();
     let m = depth.threshold();
     let beta = beta && !depth_only;
+    let thinned = (solid_fraction > 0.0).then(|| scene.occupancy.keep_solid(solid_fraction, m.min_sigma()));
+    let depth_scene =
+        Scene { model: scene.model, params: scene.params, occupancy: thinned.as_ref().unwrap_or(scene.occupancy) };
     let mut renderer = ViewRenderer::<M>::new();
+    renderer.set_coarse_start(coarse_start);
     let mut progress = Progress::new("render", data.views.len() as u64);
     for (i, (v, f)) in data.views.iter().zip(&data.frames).enumerate() {
         let k = &v.intrinsics;
@@ -60,7 +73,7 @@ fn render_all<M: Model>(
         let mut threshold = vec![0.0; n];
         let (mut rgb, mut expected, mut b) = (Vec::new(), Vec::new(), Vec::new());
         if depth_only {
-            renderer.depth(isa, scene, k, &v.pose, m, &mut threshold);
+            renderer.depth(isa, &depth_scene, k, &v.pose, m, &mut threshold);
         } else {
             (rgb, expected) = (vec![[0.0; 3]; n], vec![0.0; n]);
             if beta {

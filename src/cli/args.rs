@@ -28,6 +28,10 @@ pub enum Command {
         depth: DepthMethod,
         /// Threshold depth alone: no colour, β or expected depth (`--depth-only`).
         depth_only: bool,
+        /// The depth-only path's solid fraction, as `Eval`'s (`--solid-fraction F`).
+        solid_fraction: f32,
+        /// The depth-only path's two passes, as `Eval`'s (`--coarse-start N|off`).
+        coarse_start: Option<u32>,
         /// Worker threads (`--threads`).
         threads: Option<usize>,
     },

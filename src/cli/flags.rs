@@ -65,8 +65,8 @@ pub(super) const FLAGS: &[Flag] = &[
     Flag { name: "model", commands: &["render", "eval", "import", "bench"], setting: false },
     Flag { name: "depth", commands: &["render", "eval"], setting: false },
     Flag { name: "depth-only", commands: &["render", "eval"], setting: false },
-    Flag { name: "solid-fraction", commands: &["eval"], setting: false },
-    Flag { name: "coarse-start", commands: &["eval"], setting: false },
+    Flag { name: "solid-fraction", commands: &["render", "eval"], setting: false },
+    Flag { name: "coarse-start", commands: &["render", "eval"], setting: false },
     Flag { name: "m", commands: &["render", "eval", "compare"], setting: false },
     Flag { name: "m-raw", commands: &["render", "eval", "compare"], setting: false },
     Flag { name: "crop", commands: &["eval"], setting: false },
@@ -511,6 +511,27 @@ impl Flags {
             }
             Some("shared") => Ok(Some(MixnetEncoding::Shared)),
             Some(_) => Ok(Some(MixnetEncoding::default())),
+        }
+    }
+
+    /// `--solid-fraction F` of `command`'s depth-only path (0 when absent: every occupied cell).
+    pub(super) fn solid_fraction(&self, command: &str) -> Result<f32, CliError> {
+        match (self.solid_fraction, self.depth_only) {
+            (Some(_), false) => {
+                Err(err(format!("{command}: --solid-fraction thins the depth-only path's grid; add --depth-only")))
+            }
+            (s, _) => Ok(s.unwrap_or(0.0)),
+        }
+    }
+
+    /// `--coarse-start N|off` of `command`'s depth-only path (`None` when absent or off: every
+    /// ray marched from the box).
+    pub(super) fn coarse_start(&self, command: &str) -> Result<Option<u32>, CliError> {
+        match (self.coarse_start, self.depth_only) {
+            (Some(_), false) => {
+                Err(err(format!("{command}: --coarse-start starts the depth-only path's rays; add --depth-only")))
+            }
+            (c, _) => Ok(c.flatten()),
         }
     }
 

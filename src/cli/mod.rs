@@ -125,6 +125,8 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             split: f.split.clone().unwrap_or_else(|| "test".into()),
             depth: f.depth()?,
             depth_only: f.depth_only,
+            solid_fraction: f.solid_fraction(&command)?,
+            coarse_start: f.coarse_start(&command)?,
             threads,
         },
         "eval" => Command::Eval {
@@ -136,18 +138,8 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             limit: f.limit,
             json: f.json,
             depth_only: f.depth_only,
-            solid_fraction: match (f.solid_fraction, f.depth_only) {
-                (Some(_), false) => {
-                    return Err(err("eval: --solid-fraction thins the depth-only path's grid; add --depth-only"))
-                }
-                (s, _) => s.unwrap_or(0.0),
-            },
-            coarse_start: match (f.coarse_start, f.depth_only) {
-                (Some(_), false) => {
-                    return Err(err("eval: --coarse-start starts the depth-only path's rays; add --depth-only"))
-                }
-                (c, _) => c.flatten(),
-            },
+            solid_fraction: f.solid_fraction(&command)?,
+            coarse_start: f.coarse_start(&command)?,
             threads,
         },
         "compare" => Command::Compare(CompareArgs {
@@ -306,6 +298,9 @@ mod tests {
             ("compare --background b --scene s --out o --depth expected", "unexpected argument '--depth'"),
             ("eval --model m --data d --solid-fraction 0.5", "add --depth-only"),
             ("eval --model m --data d --coarse-start 2", "add --depth-only"),
+            ("render --model m --data d --out o --solid-fraction 0.5", "render: --solid-fraction"),
+            ("render --model m --data d --out o --coarse-start 1", "render: --coarse-start"),
+            ("bench --coarse-start 1", "unexpected argument '--coarse-start'"),
             ("eval --model m --data d --depth-only --coarse-start near", "--coarse-start: 'near' is not off"),
             ("eval --model m --data d --depth-only --solid-fraction -1", "--solid-fraction: -1 is outside"),
             ("train --data d --out m --pixel-rays 0", "--pixel-rays: expected"),

@@ -37,10 +37,11 @@ commands:
          [--checkpoint-every N]
          continue an interrupted run bit-exactly, with the checkpoint's settings, on the same data
   render --model MODEL --data DIR --out DIR [--split NAME] [--depth threshold|expected]
-         [--m M | --m-raw S] [--depth-only] [--threads N]
+         [--m M | --m-raw S] [--depth-only [--solid-fraction F] [--coarse-start N|off]] [--threads N]
          depth (EXR metres, 16-bit PNG mm, .npy metres, colourised PNG), PLY point cloud (world
          frame) and RGB of the split's views (--depth-only: threshold depth and an uncoloured
-         point cloud, without the colour pass)
+         point cloud, without the colour pass; --solid-fraction 0.5 --coarse-start 1 render it
+         as the onboard renderer does by default, see eval)
   eval   --model MODEL --data DIR [--split NAME] [--depth threshold|expected] [--m M | --m-raw S]
          [--crop frame|full|HALF] [--limit METRES] [--json] [--depth-only [--solid-fraction F] [--coarse-start N|off]]
          [--threads N]
