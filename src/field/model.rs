@@ -160,7 +160,7 @@ pub trait Model: Sync {
 /// A model that is a frozen NeRF outside a region of the scene box: a residual model with a
 /// change region, where β = 0 outside. A sample outside the region has the frozen NeRF's
 /// density and colour whatever the parameters, so a training ray's samples there can be
-/// evaluated once and reused over many steps ([`crate::train::pool`]); the samples inside run
+/// evaluated once and reused over many steps (`train::pool`); the samples inside run
 /// through the chunk path with the frozen NeRF's outputs handed in instead of evaluated.
 pub trait FrozenOutside<P, C>: Sync {
     /// The frozen NeRF.

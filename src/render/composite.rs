@@ -66,7 +66,7 @@ pub fn weights_from_density(sigma: &[f32], delta: &[f32], weights: &mut [f32]) -
 }
 
 /// Composites one ray: densities `sigma`, steps `delta`, distances `t`, colours `rgb`
-/// (activated, in [0,1]) and the background colour `bg`.
+/// (activated, in `[0, 1]`) and the background colour `bg`.
 pub fn composite_ray(sigma: &[f32], delta: &[f32], t: &[f32], rgb: &[[f32; 3]], bg: [f32; 3]) -> RayComposite {
     let n = sigma.len();
     assert!(delta.len() == n && t.len() == n && rgb.len() == n, "composite: sample arrays differ in length");

@@ -146,7 +146,7 @@ impl<M: Model> Default for Worker<M> {
 /// Reusable buffers for rendering views of a model `M` (a [`NerfField`] by default): one
 /// worker per thread of the pool it runs on.
 ///
-/// A view is cut into tiles of whole rows ([`TILE_PIXELS`]); each thread takes the next tile
+/// A view is cut into tiles of whole rows (`TILE_PIXELS`); each thread takes the next tile
 /// and marches, evaluates and composites it on its own, so everything a round touches stays in
 /// its core's cache. Tiles do not depend on the thread count, and neither do the results.
 pub struct ViewRenderer<M: Model = NerfField> {

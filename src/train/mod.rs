@@ -1,5 +1,5 @@
 //! Training: the optimiser, its learning-rate schedule, thread-independent gradient slots and
-//! the trainer loop over any [`model::Model`] (a NeRF, or a residual model).
+//! the trainer loop over any [`crate::field::model::Model`] (a NeRF, or a residual model).
 
 pub mod adam;
 pub mod beta;

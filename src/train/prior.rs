@@ -290,7 +290,7 @@ const FIT_ROUNDS: usize = 5;
 
 /// The per-channel gain taking `scene`'s colours to `background`'s (same pixels), robust to the
 /// pixels that really changed: least squares per channel (`g = Σxy / Σx²`) over the inlier
-/// pixels, refitted [`FIT_ROUNDS`] times, a pixel an inlier while its worst channel's residual
+/// pixels, refitted `FIT_ROUNDS` times, a pixel an inlier while its worst channel's residual
 /// is within 3 robust standard deviations (1.4826 × the median absolute residual, at least
 /// 0.01). Starts from every pixel; the changed ones (a glass, its shadow: a minority) drop out
 /// as the fit settles. Saturated pixels (a channel at 0 or 1 in either image) are left out: they

@@ -131,7 +131,7 @@ pub struct TrainConfig {
     /// Times each training ray is drawn, on average, when the model is a frozen field outside
     /// a region whose occupancy grid is frozen there (the default residual method): a ray's
     /// samples outside the region are evaluated once and its rays are drawn from a pool
-    /// ([`crate::train::pool`]); 0 or 1 draws every ray fresh. Needs no distortion loss, one ray per pixel, no
+    /// (`train::pool`); 0 or 1 draws every ray fresh. Needs no distortion loss, one ray per pixel, no
     /// near-camera gradient scaling and no error map (otherwise every ray is fresh). Defaults
     /// to [`RAY_POOL`].
     pub ray_pool: u32,

@@ -195,7 +195,7 @@ impl HashGrid {
         }
     }
 
-    /// Encodes a large batch on the rayon pool (chunks of [`CHUNK`] samples; the result does
+    /// Encodes a large batch on the rayon pool (chunks of `CHUNK` samples; the result does
     /// not depend on the thread count).
     pub fn forward_par(&self, isa: Isa, table: &[u32], positions: &[[f32; 3]], out: &mut [f32]) {
         self.check(table.len(), positions.len(), out.len());
