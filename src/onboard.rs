@@ -65,8 +65,8 @@ pub const SOLID_FRACTION: f32 = 0.5;
 /// ([`ViewRenderer::set_coarse_start`]), by default; see [`DepthRenderer::coarse_start`] for
 /// the trade. 1: the step of the lattice (a neighbour's hit sample lies up to a step past its
 /// surface, and a pixel between its neighbours on a plane or a concave surface lies no nearer
-/// than the nearest of them). On the dev models a view takes about 0.5–0.75× the time of
-/// marching every ray from the box, and about 1% of the pixels move, each farther, where a
+/// than the nearest of them). On the dev models a view takes 0.52–0.77× the time of marching
+/// every ray from the box, and 0.8–1.1% of the pixels move, each farther, where a
 /// solid thinner than two pixels (mostly a speck of fog) or a bump of more than a step over one
 /// pixel stood in front of the surface; the depth scores as well against the ground truth as
 /// marching from the box or a margin of 2 (docs/DECISIONS.md, "The robot's depth in two

@@ -91,14 +91,10 @@ pub fn evaluate<M: Model>(
 ) -> EvalReport {
     let EvalOptions { depth, crop, limit, background, depth_only, solid_fraction, coarse_start } = *opts;
     assert!(!(depth_only && depth == DepthMethod::Expected), "eval: expected depth needs the colour pass");
-    assert!(solid_fraction == 0.0 || depth_only, "eval: a solid fraction applies to the depth-only path");
-    assert!(coarse_start.is_none() || depth_only, "eval: a coarse start applies to the depth-only path");
     let m = depth.threshold();
-    let thinned = (solid_fraction > 0.0).then(|| scene.occupancy.keep_solid(solid_fraction, m.min_sigma()));
-    let depth_scene =
-        Scene { model: scene.model, params: scene.params, occupancy: thinned.as_ref().unwrap_or(scene.occupancy) };
     let mut renderer = ViewRenderer::<M>::new();
-    renderer.set_coarse_start(coarse_start);
+    let thinned = super::onboard_trades(scene, m, depth_only, solid_fraction, coarse_start, &mut renderer);
+    let depth_scene = scene.with_grid(thinned.as_ref());
     let mut errors = DepthErrors::default();
     let mut regions = DepthReport::default();
     let (mut psnr_sum, mut with_depth) = (0.0, 0);

@@ -30,6 +30,24 @@ pub(crate) fn load_data(
     Ok(data)
 }
 
+/// The depth-only path with the onboard renderer's trades, as `rnerf eval` and `rnerf render`
+/// take them (`--solid-fraction F`, `--coarse-start N|off`): sets `renderer`'s coarse start and
+/// returns the scene's grid thinned to `solid_fraction` of `m` (`None` at 0: every occupied
+/// cell), for [`Scene::with_grid`]. Both trades apply to the depth-only path alone.
+fn onboard_trades<M: crate::field::model::Model>(
+    scene: &crate::render::view::Scene<'_, M>,
+    m: crate::render::DensityThreshold,
+    depth_only: bool,
+    solid_fraction: f32,
+    coarse_start: Option<u32>,
+    renderer: &mut crate::render::ViewRenderer<M>,
+) -> Option<crate::geometry::occupancy::OccupancyGrid> {
+    assert!(solid_fraction == 0.0 || depth_only, "a solid fraction applies to the depth-only path");
+    assert!(coarse_start.is_none() || depth_only, "a coarse start applies to the depth-only path");
+    renderer.set_coarse_start(coarse_start);
+    (solid_fraction > 0.0).then(|| scene.occupancy.keep_solid(solid_fraction, m.min_sigma()))
+}
+
 /// A failed command: its one-line message and the process's exit code.
 #[derive(Debug)]
 pub struct Failure {

@@ -56,16 +56,12 @@ struct How {
 /// `depth_only`: threshold depth alone (no RGB, β or point colours).
 fn render_all<M: Model>(scene: &Scene<'_, M>, data: &Dataset, how: &How, out: &Path, beta: bool) -> Result<(), String> {
     let How { depth, depth_only, solid_fraction, coarse_start, background } = *how;
-    assert!(solid_fraction == 0.0 || depth_only, "render: a solid fraction applies to the depth-only path");
-    assert!(coarse_start.is_none() || depth_only, "render: a coarse start applies to the depth-only path");
     let isa = Isa::detect();
     let m = depth.threshold();
     let beta = beta && !depth_only;
-    let thinned = (solid_fraction > 0.0).then(|| scene.occupancy.keep_solid(solid_fraction, m.min_sigma()));
-    let depth_scene =
-        Scene { model: scene.model, params: scene.params, occupancy: thinned.as_ref().unwrap_or(scene.occupancy) };
     let mut renderer = ViewRenderer::<M>::new();
-    renderer.set_coarse_start(coarse_start);
+    let thinned = super::onboard_trades(scene, m, depth_only, solid_fraction, coarse_start, &mut renderer);
+    let depth_scene = scene.with_grid(thinned.as_ref());
     let mut progress = Progress::new("render", data.views.len() as u64);
     for (i, (v, f)) in data.views.iter().zip(&data.frames).enumerate() {
         let k = &v.intrinsics;

@@ -208,6 +208,14 @@ pub struct Scene<'a, M: Model> {
     pub occupancy: &'a OccupancyGrid,
 }
 
+impl<M: Model> Scene<'_, M> {
+    /// The same model and parameters over `grid` instead of the scene's own grid (`None`: its
+    /// own), e.g. one thinned by [`OccupancyGrid::keep_solid`].
+    pub fn with_grid<'b>(&'b self, grid: Option<&'b OccupancyGrid>) -> Scene<'b, M> {
+        Scene { model: self.model, params: self.params, occupancy: grid.unwrap_or(self.occupancy) }
+    }
+}
+
 impl<'a> From<&'a Nerf> for Scene<'a, NerfField> {
     fn from(n: &'a Nerf) -> Self {
         Scene { model: &n.field, params: &n.params, occupancy: &n.occupancy }

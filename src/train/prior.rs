@@ -429,7 +429,7 @@ fn background_at(
     let grid = &background.occupancy;
     let depth_only = rendered.iter().zip(matches).any(|(done, matched)| done.is_none() && matched.is_some());
     let solid = depth_only.then(|| grid.keep_solid(solid_fraction, m.min_sigma()));
-    let depth_scene = Scene { occupancy: solid.as_ref().unwrap_or(grid), ..Scene::from(background) };
+    let depth_scene = scene.with_grid(solid.as_ref());
     let each = views.iter().zip(matches).zip(rendered);
     each.map(|((v, matched), done)| {
         let k = &v.intrinsics;
