@@ -22,6 +22,7 @@ use crate::field::residual::ResidualField;
 use crate::field::NerfField;
 use crate::io::{load_model, LoadedModel};
 use crate::render::view::Scene;
+pub use crate::render::view::COARSE_SPACING;
 use crate::render::{pixel_ray, Aabb, FullOutputs, Intrinsics, OccupancyGrid, Pose, ViewRenderer};
 use crate::simd::Isa;
 use std::path::Path;
@@ -60,17 +61,18 @@ pub struct Extras<'a> {
 /// `solid_fraction(0.25)` or `exact(true)`.
 pub const SOLID_FRACTION: f32 = 0.5;
 
-/// Threshold depth renders every other row and column first and starts the other rays this
-/// many lattice steps before the nearest depth of those around them
-/// ([`ViewRenderer::set_coarse_start`]), by default; see [`DepthRenderer::coarse_start`] for
-/// the trade. 1: the step of the lattice (a neighbour's hit sample lies up to a step past its
-/// surface, and a pixel between its neighbours on a plane or a concave surface lies no nearer
-/// than the nearest of them). On the dev models a view takes 0.52–0.77× the time of marching
-/// every ray from the box, and 0.8–1.1% of the pixels move, each farther, where a
-/// solid thinner than two pixels (mostly a speck of fog) or a bump of more than a step over one
-/// pixel stood in front of the surface; the depth scores as well against the ground truth as
-/// marching from the box or a margin of 2 (docs/DECISIONS.md, "The robot's depth in two
-/// passes"; `coarse_start(Some(2))` is the setting with a step of slack).
+/// Threshold depth renders every other row and column first (every 4th or 8th on views finer
+/// than the dev cameras', [`COARSE_SPACING`]) and starts the other rays this many lattice
+/// steps before the nearest depth of those around them ([`ViewRenderer::set_coarse_start`]),
+/// by default; see [`DepthRenderer::coarse_start`] for the trade. 1: the step of the lattice
+/// (a neighbour's hit sample lies up to a step past its surface, and a pixel between its
+/// neighbours on a plane or a concave surface lies no nearer than the nearest of them). On the
+/// dev models a 200×200 view takes 0.52–0.77× the time of marching every ray from the box, and
+/// 0.8–1.1% of the pixels move, each farther, where a solid thinner than two pixels (mostly a
+/// speck of fog) or a bump of more than a step over one pixel stood in front of the surface;
+/// the depth scores as well against the ground truth as marching from the box or a margin of 2
+/// (docs/DECISIONS.md, "The robot's depth in passes"; `coarse_start(Some(2))` is the setting
+/// with a step of slack). At 640×480 three passes take 0.71–0.87× the time of two.
 pub const COARSE_MARGIN: u32 = 1;
 
 /// A loaded model (plain NeRF or residual) and the reusable buffers to render it.
@@ -129,13 +131,17 @@ impl DepthRenderer {
 
     /// `Some(margin)`: threshold depth renders the pixels of every other row and column
     /// first, then starts each other ray `margin` lattice steps before the nearest depth
-    /// among the first pass's pixels around it ([`ViewRenderer::set_coarse_start`]). Such a
-    /// ray skips the air and most of the occupied cell in front of its surface; its depth
-    /// is the same as marching from the box unless a solid stands before that start, which
-    /// on a surface smooth over two pixels it cannot: what it misses is a solid thinner than
-    /// two pixels in front of all four neighbours' surfaces (a speck of fog, or a wire 1 px
-    /// wide along an odd row or column; such a pixel reads the surface behind). `None`: every
-    /// ray from the box. Default [`COARSE_MARGIN`]; colour, β and expected depth ignore it.
+    /// among the first pass's pixels around it ([`ViewRenderer::set_coarse_start`]); on a
+    /// view whose pixels are finer than half of [`COARSE_SPACING`] (640×480 through the dev
+    /// cameras' lens) the first pass takes every 4th (8th, …) row and column and each
+    /// further pass halves the stride by the same rule. Such a ray skips the air and most of the
+    /// occupied cell in front of its surface; its depth is the same as marching from the box
+    /// unless a solid stands before that start, which on a surface smooth over the first
+    /// pass's spacing it cannot: what it misses is a solid narrower than that spacing (7.2
+    /// mrad, 3.6 mm at 0.5 m) in front of all its neighbours' surfaces (a speck of fog, or a
+    /// wire along a row or column the first pass skips; such a pixel reads the surface
+    /// behind). `None`: every ray from the box. Default [`COARSE_MARGIN`]; colour, β and
+    /// expected depth ignore it.
     pub fn coarse_start(mut self, margin: Option<u32>) -> DepthRenderer {
         self.nerf.set_coarse_start(margin);
         self.residual.set_coarse_start(margin);

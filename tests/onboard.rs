@@ -12,6 +12,7 @@ use residual_nerf::files::export::depth_ply_bytes;
 use residual_nerf::io::LoadedModel;
 use residual_nerf::onboard::COARSE_MARGIN;
 use residual_nerf::onboard::{DepthKind, DepthMethod, DepthRenderer, DepthRequest, Error, ErrorKind, Extras};
+use residual_nerf::render::view::{coarse_stride, COARSE_SPACING};
 use residual_nerf::render::{pixel_ray, DensityThreshold, Intrinsics, Pose, ViewRenderer};
 use residual_nerf::simd::Isa;
 use std::ffi::OsString;
@@ -130,47 +131,67 @@ fn the_coarse_start_moves_only_pixels_with_a_solid_before_their_start() {
     let dt = nerf.occupancy.step_size();
     let mut reference = ViewRenderer::new();
     let mut coarse = ViewRenderer::new();
-    let (mut pixels, mut moved_at_default, mut moved_at_zero) = (0, 0, 0);
+    let (mut pixels, mut moved_at_default, mut moved_at_zero, mut moved_between) = (0, 0, 0, 0);
+    let on = |i: usize, len: usize, s: usize| i.is_multiple_of(s) || i + 1 == len;
     for (size, (_, pose)) in [(24, 24), (23, 17), (2, 1)].into_iter().cycle().zip(cameras()) {
         let k = Intrinsics::from_fov_x(size.0, size.1, 0.9);
         let (w, h) = (k.width as usize, k.height as usize);
         let mut want = vec![0.0; w * h];
         reference.depth(isa, &(&nerf).into(), &k, &pose, M, &mut want);
-        let first = |i: usize, len: usize| i.is_multiple_of(2) || i + 1 == len;
-        let around = |i: usize, len: usize| if first(i, len) { vec![i] } else { vec![i - 1, i + 1] };
-        let neighbours = |x: usize, y: usize| -> Vec<f32> {
-            around(y, h)
-                .iter()
-                .flat_map(|&yy| around(x, w).into_iter().map(move |xx| yy * w + xx))
-                .map(|q| want[q])
-                .collect()
-        };
-        for margin in [0, 1, 2, 4] {
-            coarse.set_coarse_start(Some(margin));
-            let mut got = vec![0.0; w * h];
-            coarse.depth(isa, &(&nerf).into(), &k, &pose, M, &mut got);
-            for (y, x) in (0..h).flat_map(|y| (0..w).map(move |x| (y, x))) {
-                let p = y * w + x;
-                if got[p].to_bits() == want[p].to_bits() {
-                    continue;
-                }
-                assert!(!(first(x, w) && first(y, h)), "({x}, {y}) of the first pass moved");
-                let zs = neighbours(x, y);
-                assert!(zs.iter().all(|z| z.is_finite()), "({x}, {y}) next to a hole should march from the box");
-                let ray = pixel_ray(&k, &pose, x as u32, y as u32);
-                let start = ray.z_to_range(zs.iter().copied().fold(f32::INFINITY, f32::min)) - margin as f32 * dt;
-                assert!(
-                    ray.z_to_range(want[p]) < start + dt,
-                    "({x}, {y}), margin {margin}: moved from {} to {} though its hit lies past the start",
-                    want[p],
-                    got[p]
-                );
-                assert!(got[p].is_nan() || got[p] > want[p], "({x}, {y}): moved nearer");
-                if margin == COARSE_MARGIN {
-                    moved_at_default += 1;
-                }
-                if margin == 0 {
-                    moved_at_zero += 1;
+        // These views see 0.04 rad a pixel: the default spacing gives two passes, 0.2 and 0.35
+        // rad first passes of every 4th and 8th row and column (three and four passes).
+        for spacing in [COARSE_SPACING, 0.2, 0.35] {
+            let first = coarse_stride(&k, spacing);
+            if size.0 > 2 {
+                assert_eq!(first, [2, 4, 8][[COARSE_SPACING, 0.2, 0.35].iter().position(|&s| s == spacing).unwrap()]);
+            }
+            coarse.set_coarse_spacing(spacing);
+            for margin in [0, 1, 2, 4] {
+                coarse.set_coarse_start(Some(margin));
+                let mut got = vec![0.0; w * h];
+                coarse.depth(isa, &(&nerf).into(), &k, &pose, M, &mut got);
+                for (y, x) in (0..h).flat_map(|y| (0..w).map(move |x| (y, x))) {
+                    let p = y * w + x;
+                    if got[p].to_bits() == want[p].to_bits() {
+                        continue;
+                    }
+                    assert!(!(on(x, w, first) && on(y, h, first)), "({x}, {y}) of the first pass moved");
+                    // The pass that renders (x, y): the largest stride s with the pixel on its
+                    // lattice; its rays start at the pixels of stride 2s that enclose them, as
+                    // rendered (they may have moved too, only farther).
+                    let s =
+                        (0..).map(|e| 1 << e).take_while(|&s| s < first && on(x, w, s) && on(y, h, s)).last().unwrap();
+                    let around = |i: usize, len: usize| {
+                        if on(i, len, 2 * s) {
+                            vec![i]
+                        } else {
+                            vec![i - s, (i + s).min(len - 1)]
+                        }
+                    };
+                    let got = &got;
+                    let zs: Vec<f32> = around(y, h)
+                        .iter()
+                        .flat_map(|&yy| around(x, w).into_iter().map(move |xx| got[yy * w + xx]))
+                        .collect();
+                    assert!(zs.iter().all(|z| z.is_finite()), "({x}, {y}) next to a hole should march from the box");
+                    let ray = pixel_ray(&k, &pose, x as u32, y as u32);
+                    let start = ray.z_to_range(zs.iter().copied().fold(f32::INFINITY, f32::min)) - margin as f32 * dt;
+                    assert!(
+                        ray.z_to_range(want[p]) < start + dt,
+                        "({x}, {y}), margin {margin}, first stride {first}: moved from {} to {} though its hit lies past the start",
+                        want[p],
+                        got[p]
+                    );
+                    assert!(got[p].is_nan() || got[p] > want[p], "({x}, {y}): moved nearer");
+                    if margin == COARSE_MARGIN && spacing == COARSE_SPACING {
+                        moved_at_default += 1;
+                    }
+                    if margin == 0 && spacing == COARSE_SPACING {
+                        moved_at_zero += 1;
+                    }
+                    if margin == 0 && s > 1 {
+                        moved_between += 1;
+                    }
                 }
             }
         }
@@ -182,6 +203,8 @@ fn the_coarse_start_moves_only_pixels_with_a_solid_before_their_start() {
     assert!(moved_at_default * 40 <= pixels, "{moved_at_default} of {pixels} pixels moved at the default margin");
     // The start takes effect: on this foggy model some ray started at margin 0 passes a speck.
     assert!(moved_at_zero > 0, "no pixel moved at margin 0: the second pass's start is not used");
+    // And so does that of the passes between the first and the last.
+    assert!(moved_between > 0, "no pixel of a middle pass moved at margin 0: its start is not used");
     // One thread and two: the same bits.
     let z_req = DepthRequest { method: DepthMethod::Threshold(M), kind: DepthKind::Z };
     let mut one = DepthRenderer::new(LoadedModel::Nerf(Box::new(nerf.clone()))).with_threads(1).unwrap();
@@ -347,4 +370,19 @@ fn rnerf_render_with_the_onboard_settings_writes_the_onboard_depth() {
     assert!(exact == onboard(load().exact(true)), "exact: not the onboard renderer's depth");
     assert!(exact != at_zero, "margin 0 moved no pixel of this model: the start's use is not shown");
     assert!(exact != robot, "the defaults moved no pixel of this model: the comparison shows little");
+}
+
+#[test]
+fn the_coarse_start_spaces_its_first_pass_by_angle_not_by_pixels() {
+    // The dev cameras (focal length 277.8 px at 200×200): every other pixel at 200×200, every
+    // fourth at 640×480 (1.1 mrad a pixel), every eighth at 1280×960; 0 keeps two passes.
+    let dev = |w: u32, h: u32| Intrinsics::pinhole(w, h, 277.8 * w as f32 / 200.0, 277.8 * w as f32 / 200.0, 0.0, 0.0);
+    for ((w, h), want) in [((200, 200), 2), ((640, 480), 4), ((1280, 960), 8), ((2, 1), 2), ((3, 3), 2)] {
+        assert_eq!(coarse_stride(&dev(w, h), COARSE_SPACING), want, "{w}×{h}");
+        assert_eq!(coarse_stride(&dev(w, h), 0.0), 2, "{w}×{h} at spacing 0");
+    }
+    // The narrower focal length decides: a pixel wide across x spaces the rows too.
+    let wide_x = Intrinsics::pinhole(640, 480, 277.8, 888.9, 0.0, 0.0);
+    assert_eq!(coarse_stride(&wide_x, COARSE_SPACING), 2);
+    assert_eq!(coarse_stride(&dev(4096, 4096), f32::INFINITY), 2048, "below the longer side");
 }

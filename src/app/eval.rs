@@ -74,8 +74,9 @@ pub struct EvalOptions {
     /// ([`crate::onboard::DepthRenderer::solid_fraction`]; `--solid-fraction F`), so what a
     /// robot gets is scored; 0 marches every occupied cell (the full pass's depths).
     pub solid_fraction: f32,
-    /// With `depth_only`: render every other row and column first and start the other rays
-    /// this many lattice steps before their neighbours' depth, as the onboard renderer does
+    /// With `depth_only`: render every other row and column first (every 4th or 8th on finer
+    /// views, [`ViewRenderer::set_coarse_spacing`]) and start the other rays this many lattice
+    /// steps before their neighbours' depth, as the onboard renderer does
     /// ([`ViewRenderer::set_coarse_start`]; `--coarse-start N`); `None` marches every ray from
     /// the box.
     pub coarse_start: Option<u32>,

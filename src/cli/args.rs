@@ -30,7 +30,7 @@ pub enum Command {
         depth_only: bool,
         /// The depth-only path's solid fraction, as `Eval`'s (`--solid-fraction F`).
         solid_fraction: f32,
-        /// The depth-only path's two passes, as `Eval`'s (`--coarse-start N|off`).
+        /// The depth-only path's coarse start, as `Eval`'s (`--coarse-start N|off`).
         coarse_start: Option<u32>,
         /// Worker threads (`--threads`).
         threads: Option<usize>,
@@ -56,7 +56,7 @@ pub enum Command {
         /// The depth-only path's solid fraction, as the onboard renderer's
         /// (`--solid-fraction F`, with `--depth-only`; default 0: every occupied cell).
         solid_fraction: f32,
-        /// The depth-only path's two passes, as the onboard renderer's: lattice steps of slack
+        /// The depth-only path's coarse start, as the onboard renderer's: lattice steps of slack
         /// before the neighbours' depth (`--coarse-start N|off`, with `--depth-only`; default off).
         coarse_start: Option<u32>,
         /// Worker threads (`--threads`).

@@ -49,8 +49,9 @@ commands:
          --depth-only: the same threshold-depth figures without the colour pass, no PSNR;
          --solid-fraction F: as the onboard renderer, skip the cells whose occupancy stayed
          below F·m, default 0: every occupied cell; --coarse-start N: as the onboard renderer,
-         render every other row and column first and start the other rays N lattice steps
-         before their neighbours' depth, default off: every ray from the box)
+         render every other row and column first (every 4th or 8th on finer views) and start
+         the other rays N lattice steps before their neighbours' depth, default off: every ray
+         from the box)
   compare --background DIR --scene DIR [--scene DIR ...] --out DIR [--background-model MODEL]
          [--methods dex,finetune,residual-paper,residual,...] [--scene-views N] [--steps N] [--rays N]
          [--log2t N] [--seed S] [--eval-every N] [--m M | --m-raw S] [--m-sweep M,M,...] [--threads N]

@@ -6,9 +6,10 @@
 //! - [`ViewRenderer::depth`] — threshold depth only: evaluates only σ (the density networks'
 //!   first outputs, [`Model::chunk_density_only`], a chunk at a time on the worker's thread)
 //!   and stops each ray at its first solid sample (the robot's hot path), 2 samples per round;
-//!   with a coarse start ([`ViewRenderer::set_coarse_start`], the onboard default) in two
-//!   passes, every other row and column first and the other rays started just before the
-//!   depth their neighbours found;
+//!   with a coarse start ([`ViewRenderer::set_coarse_start`], the onboard default) in passes,
+//!   every other row and column first (every 4th or 8th on finer views, so that the first
+//!   pass's pixels lie within [`COARSE_SPACING`] of each other), then each further pass's rays
+//!   started just before the depth their neighbours found;
 //! - [`ViewRenderer::full`] — colour, expected depth and threshold depth (and β): the training
 //!   step's chunk path a chunk at a time on the worker's thread — σ of every marched sample,
 //!   colour and β only of the samples a ray composites (before it turns opaque, `T < 1e-4`, as
@@ -43,6 +44,15 @@ pub const DEPTH_SEGMENT: usize = 2;
 /// Samples per evaluation on a worker's thread (both paths): encodings and activations of this
 /// many stay in L1/L2.
 const CHUNK: usize = 256;
+/// The widest angle (radians) between neighbouring pixels of a coarse start's first pass
+/// ([`ViewRenderer::set_coarse_spacing`]): two pixels of the dev cameras (focal length 277.8 px,
+/// 3.6 mrad a pixel), the spacing the coarse start was scored at against the ground truth. A
+/// 200×200 dev view renders in two passes (every other row and column first); the same cameras
+/// at 640×480 (1.1 mrad a pixel) in three (every fourth, then every other, then the rest). What
+/// a coarse start can miss is a solid narrower than this angle in front of all its neighbours'
+/// surfaces (3.6 mm at 0.5 m), whatever the camera's resolution (docs/DECISIONS.md, "The
+/// robot's depth in passes").
+pub const COARSE_SPACING: f32 = 2.0 / 277.8;
 /// First segment length of the full path; doubles per round up to [`MAX_SEGMENT`].
 const FIRST_SEGMENT: usize = 16;
 const MAX_SEGMENT: usize = 128;
@@ -159,6 +169,8 @@ pub struct ViewRenderer<M: Model = NerfField> {
     pass_z: Vec<f32>,
     /// Lattice steps of slack before the start a coarse pass sets ([`ViewRenderer::set_coarse_start`]).
     coarse_margin: Option<u32>,
+    /// The widest angle between the first pass's pixels ([`ViewRenderer::set_coarse_spacing`]).
+    coarse_spacing: f32,
     /// Samples per ray per round of the depth-only path ([`ViewRenderer::set_depth_round`]).
     depth_round: usize,
     /// Transmittance below which a ray of the full path stops compositing
@@ -191,6 +203,7 @@ impl<M: Model> Default for ViewRenderer<M> {
             starts: Vec::new(),
             pass_z: Vec::new(),
             coarse_margin: None,
+            coarse_spacing: COARSE_SPACING,
             depth_round: DEPTH_SEGMENT,
             stop: EARLY_STOP_TRANSMITTANCE,
             fill: StopFill::Background,
@@ -252,12 +265,14 @@ impl<M: Model> ViewRenderer<M> {
         self.fill = fill;
     }
 
-    /// `Some(margin)`: [`ViewRenderer::depth`] renders in two passes. The first renders the
-    /// pixels of even rows and columns (and the last row and column) as usual; the second
-    /// starts each other pixel's ray `margin` lattice steps before the nearest threshold hit of
-    /// the first pass's pixels around it (the two, or four, that enclose it), read as the
-    /// same z-depth on its own ray, and marches from there; next to a first-pass hole it
-    /// marches from the box. A pixel's depth is the same bits as without it whenever its ray
+    /// `Some(margin)`: [`ViewRenderer::depth`] renders in passes. The first renders the pixels
+    /// of even rows and columns (and the last row and column) as usual; the second starts each
+    /// other pixel's ray `margin` lattice steps before the nearest threshold hit of the first
+    /// pass's pixels around it (the two, or four, that enclose it), read as the same z-depth on
+    /// its own ray, and marches from there; next to a first-pass hole it marches from the box.
+    /// On views finer than [`ViewRenderer::set_coarse_spacing`]'s angle the first pass takes
+    /// every 4th (8th, …) row and column, and each further pass halves the stride by the same
+    /// rule. A pixel's depth is the same bits as without it whenever its ray
     /// has no solid sample before that start: everywhere on surfaces smooth at the scale of
     /// two pixels, since a pixel between two others on a plane lies between their depths. What
     /// it can miss is a solid thinner than two pixels standing in front of all of them (a wire
@@ -266,6 +281,16 @@ impl<M: Model> ViewRenderer<M> {
     /// default): every ray marches from where it enters the box.
     pub fn set_coarse_start(&mut self, margin: Option<u32>) {
         self.coarse_margin = margin;
+    }
+
+    /// The widest angle (radians) between the pixels of a coarse start's first pass (default
+    /// [`COARSE_SPACING`]): the first pass renders every `s`-th row and column, `s` the largest
+    /// power of two whose `s` pixels span at most this angle at the image centre (2 at least),
+    /// and each further pass halves `s`, starting its rays at the depth of the last passes'
+    /// pixels that enclose them (the rule of [`ViewRenderer::set_coarse_start`] at each
+    /// stride). 0: always two passes.
+    pub fn set_coarse_spacing(&mut self, radians: f32) {
+        self.coarse_spacing = if radians.is_nan() { COARSE_SPACING } else { radians.max(0.0) };
     }
 
     /// Threshold z-depth of every pixel into `z` (`width × height`), NaN for holes.
@@ -287,31 +312,39 @@ impl<M: Model> ViewRenderer<M> {
             return;
         };
         let (w, h) = (k.width as usize, k.height as usize);
-        // A row or column of the first pass: even, or the last (so every other pixel has one
-        // on each side).
-        let first = |i: usize, len: usize| i.is_multiple_of(2) || i + 1 == len;
+        // On the lattice of stride `s`: a multiple of s, or the last row or column (so every
+        // pixel between two of its rows or columns has one on each side).
+        let on = |i: usize, len: usize, s: usize| i.is_multiple_of(s) || i + 1 == len;
+        let mut s = coarse_stride(k, self.coarse_spacing);
         self.pixels.clear();
         self.starts.clear();
-        for y in (0..h).filter(|&y| first(y, h)) {
-            self.pixels.extend((0..w).filter(|&x| first(x, w)).map(|x| (y * w + x) as u32));
+        for y in (0..h).filter(|&y| on(y, h, s)) {
+            self.pixels.extend((0..w).filter(|&x| on(x, w, s)).map(|x| (y * w + x) as u32));
         }
         self.pass(isa, scene, (k, pose, m), 0.0, z);
-        // The first pass's pixels enclosing (x, y): its own row or column where that is a
-        // first-pass one, else the ones either side.
-        let around = |i: usize, len: usize| if first(i, len) { [i, i] } else { [i - 1, i + 1] };
-        self.pixels.clear();
-        for y in 0..h {
-            for x in (0..w).filter(|&x| !(first(x, w) && first(y, h))) {
-                // The nearest of their depths; a hole (NaN) among them counts as −∞: no bound,
-                // march from the box.
-                let zs = around(y, h).into_iter().flat_map(|yy| around(x, w).map(|xx| z[yy * w + xx]));
-                let near = zs.map(|d| if d.is_nan() { f32::NEG_INFINITY } else { d }).fold(f32::INFINITY, f32::min);
-                self.pixels.push((y * w + x) as u32);
-                self.starts.push(near);
-            }
-        }
         let slack = margin as f32 * scene.occupancy.step_size();
-        self.pass(isa, scene, (k, pose, m), slack, z);
+        while s > 1 {
+            // The pixels of the lattice of stride s / 2 not on that of s, each started at the
+            // pixels of s that enclose it: its own row or column where that is on s, else the
+            // ones half a stride either side (the last where that is past the edge).
+            let half = s / 2;
+            let around =
+                |i: usize, len: usize| if on(i, len, s) { [i, i] } else { [i - half, (i + half).min(len - 1)] };
+            self.pixels.clear();
+            self.starts.clear();
+            for y in (0..h).filter(|&y| on(y, h, half)) {
+                for x in (0..w).filter(|&x| on(x, w, half) && !(on(x, w, s) && on(y, h, s))) {
+                    // The nearest of their depths; a hole (NaN) among them counts as −∞: no
+                    // bound, march from the box.
+                    let zs = around(y, h).into_iter().flat_map(|yy| around(x, w).map(|xx| z[yy * w + xx]));
+                    let near = zs.map(|d| if d.is_nan() { f32::NEG_INFINITY } else { d }).fold(f32::INFINITY, f32::min);
+                    self.pixels.push((y * w + x) as u32);
+                    self.starts.push(near);
+                }
+            }
+            self.pass(isa, scene, (k, pose, m), slack, z);
+            s = half;
+        }
     }
 
     /// Renders the depth of `self.pixels` in the view `(k, pose)` at threshold `m` (starting at
@@ -400,6 +433,19 @@ impl<M: Model> ViewRenderer<M> {
             }
         });
     }
+}
+
+/// The stride of a coarse start's first pass over the view `k` ([`ViewRenderer::set_coarse_spacing`]):
+/// the largest power of two, at least 2 and below the image's longer side, whose pixels span at
+/// most `spacing` radians at the image centre.
+pub fn coarse_stride(k: &Intrinsics, spacing: f32) -> usize {
+    let pixel = 1.0 / k.fx.min(k.fy);
+    let longest = k.width.max(k.height) as usize;
+    let mut s = 2;
+    while 2 * s < longest && (2 * s) as f32 * pixel <= spacing {
+        s *= 2;
+    }
+    s
 }
 
 impl<M: Model> Worker<M> {
