@@ -148,6 +148,17 @@ impl DepthRenderer {
         self
     }
 
+    /// The widest angle (radians) between the pixels of the coarse start's first pass
+    /// (default [`COARSE_SPACING`], 7.2 mrad; [`ViewRenderer::set_coarse_spacing`]): a solid
+    /// narrower than it in front of all its neighbours can be missed. 0 keeps every other row
+    /// and column at any resolution (what can be missed is then two pixels wide, and the
+    /// first pass of a 640×480 view holds about twice the samples); NaN is the default.
+    pub fn coarse_spacing(mut self, radians: f32) -> DepthRenderer {
+        self.nerf.set_coarse_spacing(radians);
+        self.residual.set_coarse_spacing(radians);
+        self
+    }
+
     /// Threshold depth at σ ≥ m skips the occupied cells whose occupancy value (the largest
     /// σ·δ training saw there) stayed below `fraction · m · δ`. 0 marches every occupied
     /// cell (exact); larger values are faster and miss more: a cell's value is a sampled

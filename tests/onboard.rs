@@ -385,4 +385,27 @@ fn the_coarse_start_spaces_its_first_pass_by_angle_not_by_pixels() {
     let wide_x = Intrinsics::pinhole(640, 480, 277.8, 888.9, 0.0, 0.0);
     assert_eq!(coarse_stride(&wide_x, COARSE_SPACING), 2);
     assert_eq!(coarse_stride(&dev(4096, 4096), f32::INFINITY), 2048, "below the longer side");
+    // The onboard renderer passes its spacing on: the same bits as the view renderer at the
+    // same spacing, on a view fine enough for three passes at 0.1 rad.
+    let nerf = trained();
+    let k = Intrinsics::from_fov_x(48, 40, 0.9);
+    let req = DepthRequest { method: DepthMethod::Threshold(M), kind: DepthKind::Z };
+    for spacing in [0.0, 0.1, COARSE_SPACING] {
+        let mut onboard = DepthRenderer::new(LoadedModel::Nerf(Box::new(nerf.clone())))
+            .solid_fraction(0.0)
+            .unwrap()
+            .coarse_spacing(spacing)
+            .with_threads(2)
+            .unwrap();
+        let mut view = ViewRenderer::new();
+        view.set_coarse_start(Some(COARSE_MARGIN));
+        view.set_coarse_spacing(spacing);
+        for (_, pose) in cameras() {
+            let n = (k.width * k.height) as usize;
+            let (mut a, mut b) = (vec![0.0; n], vec![0.0; n]);
+            onboard.depth(&k, &pose, req, &mut a).unwrap();
+            view.depth(Isa::detect(), &(&nerf).into(), &k, &pose, M, &mut b);
+            assert_eq!(bits(&a), bits(&b), "spacing {spacing}");
+        }
+    }
 }
