@@ -23,42 +23,39 @@ use residual_nerf::data::dataset::{Dataset, LoadOptions};
 use residual_nerf::field::model::Model;
 use residual_nerf::io::{load_model, LoadedModel};
 use residual_nerf::render::view::Scene;
-use residual_nerf::render::view::COARSE_SPACING;
 use residual_nerf::render::{DepthMethod, Intrinsics, Pose, ViewRenderer};
 use residual_nerf::simd::Isa;
 use std::path::Path;
 use std::time::Instant;
+
+#[path = "shared/coarse_setting.rs"]
+mod coarse_setting;
 
 fn main() -> Result<(), String> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let [model, data, rest @ ..] = &args[..] else {
         return Err("usage: coarse_start MODEL DATA_DIR [SETTINGS [REPS]]".into());
     };
+    // Marching from the box is always measured (the reference of the moved pixels).
     let settings: Vec<(u32, f32)> = rest
         .first()
         .map_or("1,2,4", String::as_str)
         .split(',')
-        .map(|s| {
-            let (margin, mrad) = s.split_once('@').unwrap_or((s, ""));
-            let margin = margin.parse().map_err(|_| format!("'{s}' is not a margin"))?;
-            let spacing = if mrad.is_empty() {
-                COARSE_SPACING
-            } else {
-                mrad.parse::<f32>().map_err(|_| format!("'{s}' is not a spacing in mrad"))? * 1e-3
-            };
-            Ok((margin, spacing))
-        })
+        .map(|s| coarse_setting::parse(s)?.ok_or_else(|| "'off' is always measured: leave it out".to_string()))
         .collect::<Result<_, String>>()?;
     let reps: usize = rest.get(1).map_or(Ok(9), |s| s.parse().map_err(|_| format!("'{s}' is not a count")))?;
     let opts = LoadOptions { ground_truth: false, ..Default::default() };
     let test = Dataset::load(Path::new(data), "test", &opts).map_err(|e| e.to_string())?;
     let mut views: Vec<(Intrinsics, Pose)> = test.views.iter().map(|v| (v.intrinsics, v.pose)).collect();
-    let (k, pose) = *views.first().ok_or("the test split has no views")?;
+    if views.is_empty() {
+        return Err("the test split has no views".into());
+    }
+    // Timed: the first three views and the first at 640×480; then the others at 640×480.
     let large: Vec<(Intrinsics, Pose)> =
         views.iter().map(|&(k, pose)| (residual_nerf::bench::resized(k, 640, Some(480)), pose)).collect();
-    views.insert(3.min(views.len()), (residual_nerf::bench::resized(k, 640, Some(480)), pose));
+    views.insert(3.min(views.len()), large[0]);
     let timed = 4.min(views.len());
-    views.extend(large.into_iter().skip(1));
+    views.extend_from_slice(&large[1..]);
     let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().map_err(|e| e.to_string())?;
     let model = load_model(Path::new(model))?;
     pool.install(|| match &model {
@@ -78,7 +75,7 @@ fn run<M: Model>(
     let isa = Isa::detect();
     let m = DepthMethod::default().threshold();
     let grid = scene.occupancy.keep_solid(residual_nerf::onboard::SOLID_FRACTION, m.min_sigma());
-    let thinned = Scene { model: scene.model, params: scene.params, occupancy: &grid };
+    let thinned = scene.with_grid(Some(&grid));
     // Setting 0 marches from the box; setting i + 1 starts at margins[i].
     let settings: Vec<Option<(u32, f32)>> = std::iter::once(None).chain(margins.iter().map(|&m| Some(m))).collect();
     let mut renderers: Vec<ViewRenderer<M>> = settings
@@ -109,7 +106,7 @@ fn run<M: Model>(
         }
     }
     for (i, c) in settings.iter().enumerate() {
-        let name = c.map_or("from the box".to_string(), |(m, sp)| format!("margin {m} spacing {:.1} mrad", sp * 1e3));
+        let name = coarse_setting::name(*c);
         let mut line = format!("{name}:");
         for t in &mut ms[i] {
             t.sort_by(f64::total_cmp);

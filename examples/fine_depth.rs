@@ -19,11 +19,14 @@ use residual_nerf::data::dataset::{Dataset, LoadOptions};
 use residual_nerf::eval::{crop_box, CropRule, DepthReport, NEAR_LIMIT};
 use residual_nerf::field::model::Model;
 use residual_nerf::io::{load_model, LoadedModel};
-use residual_nerf::render::view::{Scene, COARSE_SPACING};
+use residual_nerf::render::view::Scene;
 use residual_nerf::render::{DepthMethod, ViewRenderer};
 use residual_nerf::simd::Isa;
 use std::path::Path;
 use std::time::Instant;
+
+#[path = "shared/coarse_setting.rs"]
+mod coarse_setting;
 
 /// A coarse start's margin and first-pass spacing (radians); `None`: every ray from the box.
 type Setting = Option<(u32, f32)>;
@@ -41,19 +44,8 @@ fn main() -> Result<(), String> {
         .get(1)
         .map_or("off,1@0,1", String::as_str)
         .split(',')
-        .map(|s| {
-            if s == "off" {
-                return Ok(None);
-            }
-            let (margin, mrad) = s.split_once('@').unwrap_or((s, ""));
-            let margin = margin.parse().map_err(|_| format!("'{s}' is not a margin"))?;
-            let spacing = match mrad {
-                "" => COARSE_SPACING,
-                m => m.parse::<f32>().map_err(|_| format!("'{s}' is not a spacing in mrad"))? * 1e-3,
-            };
-            Ok(Some((margin, spacing)))
-        })
-        .collect::<Result<_, String>>()?;
+        .map(coarse_setting::parse)
+        .collect::<Result<_, _>>()?;
     let test = Dataset::load(Path::new(data), "test", &LoadOptions::default()).map_err(|e| e.to_string())?;
     let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().map_err(|e| e.to_string())?;
     let model = load_model(Path::new(model))?;
@@ -95,7 +87,7 @@ fn run<M: Model>(scene: &Scene<'_, M>, test: &Dataset, n: u32, settings: &[Setti
             let crop = crop_box(CropRule::Frame, k.width, k.height, f.crop);
             report.add_frame(&z, truth, f.mask.as_deref(), k.width, crop, NEAR_LIMIT);
         }
-        let name = setting.map_or("from the box".into(), |(m, s)| format!("margin {m} spacing {:.1} mrad", s * 1e3));
+        let name = coarse_setting::name(setting);
         let r = &report;
         println!(
             "{name}, {n}x: crop MAE {:.4} RMSE {:.4}; object MAE {:.4} holes {:.2}%; near-crop RMSE {:.4}; crop w/o object MAE {:.4}; rendering {seconds:.2} s",

@@ -68,7 +68,7 @@ pub const SOLID_FRACTION: f32 = 0.5;
 /// (a neighbour's hit sample lies up to a step past its surface, and a pixel between its
 /// neighbours on a plane or a concave surface lies no nearer than the nearest of them). On the
 /// dev models a 200×200 view takes 0.52–0.77× the time of marching every ray from the box, and
-/// 0.8–1.1% of the pixels move, each farther, where a solid thinner than two pixels (mostly a
+/// 1.0–1.4% of its pixels move, each farther, where a solid thinner than two pixels (mostly a
 /// speck of fog) or a bump of more than a step over one pixel stood in front of the surface;
 /// the depth scores as well against the ground truth as marching from the box or a margin of 2
 /// (docs/DECISIONS.md, "The robot's depth in passes"; `coarse_start(Some(2))` is the setting
@@ -132,7 +132,7 @@ impl DepthRenderer {
     /// `Some(margin)`: threshold depth renders the pixels of every other row and column
     /// first, then starts each other ray `margin` lattice steps before the nearest depth
     /// among the first pass's pixels around it ([`ViewRenderer::set_coarse_start`]); on a
-    /// view whose pixels are finer than half of [`COARSE_SPACING`] (640×480 through the dev
+    /// view whose pixels are finer than a quarter of [`COARSE_SPACING`] (640×480 through the dev
     /// cameras' lens) the first pass takes every 4th (8th, …) row and column and each
     /// further pass halves the stride by the same rule. Such a ray skips the air and most of the
     /// occupied cell in front of its surface; its depth is the same as marching from the box
@@ -151,8 +151,9 @@ impl DepthRenderer {
     /// The widest angle (radians) between the pixels of the coarse start's first pass
     /// (default [`COARSE_SPACING`], 7.2 mrad; [`ViewRenderer::set_coarse_spacing`]): a solid
     /// narrower than it in front of all its neighbours can be missed. 0 keeps every other row
-    /// and column at any resolution (what can be missed is then two pixels wide, and the
-    /// first pass of a 640×480 view holds about twice the samples); NaN is the default.
+    /// and column at any resolution (what can be missed is then two pixels wide; a 640×480
+    /// view through the dev cameras' lens took 1.15–1.41× the default's time that way,
+    /// docs/DECISIONS.md, "The first pass's spacing"); NaN is the default.
     pub fn coarse_spacing(mut self, radians: f32) -> DepthRenderer {
         self.nerf.set_coarse_spacing(radians);
         self.residual.set_coarse_spacing(radians);

@@ -274,9 +274,9 @@ impl<M: Model> ViewRenderer<M> {
     /// every 4th (8th, …) row and column, and each further pass halves the stride by the same
     /// rule. A pixel's depth is the same bits as without it whenever its ray
     /// has no solid sample before that start: everywhere on surfaces smooth at the scale of
-    /// two pixels, since a pixel between two others on a plane lies between their depths. What
-    /// it can miss is a solid thinner than two pixels standing in front of all of them (a wire
-    /// or an edge-on sheet along an odd row or column). The rays of the second pass skip the
+    /// the first pass's spacing, since a pixel between two others on a plane lies between
+    /// their depths. What it can miss is a solid narrower than that spacing standing in front
+    /// of all of them (a wire or an edge-on sheet along a row or column the first pass skips). The rays of the second pass skip the
     /// empty air and most of the occupied cell in front of their surface. `None` (the
     /// default): every ray marches from where it enters the box.
     pub fn set_coarse_start(&mut self, margin: Option<u32>) {
