@@ -7,7 +7,8 @@ usage: scripts/seeds_summary.py RUN [RUN ...]
 
 Prints a markdown table: per method, the mean over the scenes of each figure, as the mean over
 the runs with the smallest and largest run in brackets; and, per method other than Dex-NeRF,
-its ratio to Dex-NeRF per run (of the scene means: object MAE, near-crop RMSE; and per scene).
+its ratio to Dex-NeRF per run (of the scene means: object MAE, near-crop RMSE; and per scene)
+when the runs have Dex-NeRF.
 Only the final rows are read (not the --m-sweep rows); methods are those every run has.
 """
 import json
@@ -52,7 +53,8 @@ def main():
         print(f"| {m} | " + " | ".join(cells) + " |")
     print()
     for m in methods:
-        if m == "dex":
+        # The ratios need Dex-NeRF's rows (runs of one method alone have none).
+        if m == "dex" or "dex" not in methods:
             continue
         for label, region, key in [("object MAE", "object", "mae"), ("near-crop RMSE", "near_crop", "rmse")]:
             # The ratio of the scene means (the compare table's "mean over scenes" ratio).
