@@ -5,7 +5,8 @@ three-scene run and Residual-NeRF from one run per scene), for scripts/seeds_sum
 usage: scripts/merge_tables.py OUT.json RUN [RUN ...]
   RUN  an `rnerf compare --out` folder or its table.json, optionally `RUN:METHOD,METHOD` to
        take only those methods' rows. A (scene, method) row met twice is an error; runs of
-       different seeds, steps or rays are refused.
+       different seeds, steps or rays are refused (runs whose rays each scene's capture chose
+       carry `rays_per_step: null` on top and the count on every row).
 """
 import json
 import sys

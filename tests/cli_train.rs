@@ -133,10 +133,11 @@ fn a_checkpoint_resumes_only_on_its_own_data() {
     let x = dir.join("x.safetensors");
     let (data_s, other_s, out_s, x_s) =
         (data.to_str().unwrap(), other.to_str().unwrap(), out.to_str().unwrap(), x.to_str().unwrap());
-    let o = rnerf(&["train", "--data", data_s, "--out", out_s, "--steps", "3", "--rays", "64", "--log2t", "10"])
-        .output()
-        .unwrap();
+    let o = rnerf(&["train", "--data", data_s, "--out", out_s, "--steps", "3", "--log2t", "10"]).output().unwrap();
     assert!(o.status.success(), "{}", stderr(&o));
+    // Without --rays a capture this small trains at the floor of `rays_for_capture`.
+    let half = (residual_nerf::train::trainer::TRAIN_RAYS / 2).to_string();
+    assert!(run_metadata(&out).contains(&("train_rays_per_step".to_string(), half)), "{:?}", run_metadata(&out));
     // A finished model is not a checkpoint.
     let o = rnerf(&["train", "--resume", out_s, "--data", data_s, "--out", x_s]).output().unwrap();
     assert_eq!(o.status.code(), Some(1));

@@ -61,6 +61,8 @@ fn compare_writes_the_table_curves_and_depth_sheets() {
     }
     let doc: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("table.json")).unwrap()).unwrap();
     let rows = doc["rows"].as_array().unwrap();
+    assert_eq!(doc["rays_per_step"], 128, "--rays fixes every run's count");
+    assert!(rows.iter().all(|r| r["rays_per_step"] == 128), "{rows:?}");
     let (sweep, main): (Vec<_>, Vec<_>) = rows.iter().partition(|r| r.get("threshold").is_some());
     assert_eq!(main.len(), 4, "nerf-expected, dex, residual-paper-shared, residual-s");
     assert_eq!(sweep.len(), 3 * 4, "each trained method at the 4 thresholds of the default sweep");
@@ -99,13 +101,18 @@ fn compare_writes_the_table_curves_and_depth_sheets() {
         "residual",
         "--steps",
         "10",
-        "--rays",
-        "128",
         "--log2t",
         "12",
     ])
     .unwrap();
     assert!(!out2.join("background.safetensors").exists(), "a given background is not retrained");
+    // Without --rays each run draws its capture's count: 6 views of 16×16 take the floor, half
+    // of the default.
+    let doc: serde_json::Value = serde_json::from_slice(&std::fs::read(out2.join("table.json")).unwrap()).unwrap();
+    assert!(doc["rays_per_step"].is_null(), "{doc}");
+    let rows = doc["rows"].as_array().unwrap();
+    let half = residual_nerf::train::trainer::TRAIN_RAYS / 2;
+    assert!(!rows.is_empty() && rows.iter().all(|r| r["rays_per_step"] == half), "{rows:?}");
     // The background-aware method on a scene captured from other poses: change maps against the
     // rendered background (no background image at the scene's poses).
     let table = std::fs::read_to_string(out2.join("table.md")).unwrap();

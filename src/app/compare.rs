@@ -112,13 +112,20 @@ pub(super) fn run(a: &crate::cli::CompareArgs) -> Result<(), String> {
     cfg.m = a.m;
     cfg.m_sweep = a.m_sweep.clone();
     cfg.prior = a.prior_settings.config();
+    cfg.capture_rays = a.rays.is_none();
     let isa = Isa::detect();
+    let rays = match cfg.capture_rays {
+        false => cfg.train.rays_per_step.to_string(),
+        true => {
+            let each: Vec<String> = scenes.iter().map(|s| cfg.train_for(&s.train).rays_per_step.to_string()).collect();
+            format!("{} (by each scene's capture)", each.join(","))
+        }
+    };
     eprintln!(
-        "rnerf compare: {} scene(s), methods {}, {} steps x {} rays, log2 T = {}, cpu level {isa}, {} threads",
+        "rnerf compare: {} scene(s), methods {}, {} steps x {rays} rays, log2 T = {}, cpu level {isa}, {} threads",
         scenes.len(),
         a.methods.iter().map(|m| m.name()).collect::<Vec<_>>().join(","),
         cfg.train.steps,
-        cfg.train.rays_per_step,
         cfg.field.grid.log2_table_size,
         rayon::current_num_threads()
     );
@@ -139,7 +146,7 @@ pub(super) fn run(a: &crate::cli::CompareArgs) -> Result<(), String> {
 /// Trains the background NeRF with the comparison's settings, showing progress.
 pub fn train_background(isa: Isa, views: &[View], cfg: &CompareConfig) -> Result<Nerf, String> {
     let mut progress = Progress::new("background", cfg.train.steps as u64);
-    train_nerf(isa, views, cfg.field.clone(), &cfg.train, 10, |s| {
+    train_nerf(isa, views, cfg.field.clone(), &cfg.train_for(views), 10, |s| {
         progress.update(s.step as u64 + 1, &format!("PSNR {:.2} dB", -10.0 * (s.loss as f64).log10()))
     })
     .map_err(|e| format!("background: {e}"))
@@ -203,6 +210,7 @@ fn write_tables(results: &[SceneResult], cfg: &CompareConfig, out: &Path) -> Res
                     x["scene"] = r.name.clone().into();
                     x["method"] = method.into();
                     x["train_seconds"] = m.seconds.into();
+                    x["rays_per_step"] = m.rays_per_step.into();
                     x["psnr"] = m.psnr.into();
                     x
                 };
@@ -229,7 +237,9 @@ fn write_tables(results: &[SceneResult], cfg: &CompareConfig, out: &Path) -> Res
             })
         })
         .collect();
-    let doc = json!({"steps": cfg.train.steps, "rays_per_step": cfg.train.rays_per_step, "seed": cfg.train.seed,
+    // Without --rays each run's own count is on its row (`CompareConfig::capture_rays`).
+    let rays = if cfg.capture_rays { serde_json::Value::Null } else { cfg.train.rays_per_step.into() };
+    let doc = json!({"steps": cfg.train.steps, "rays_per_step": rays, "seed": cfg.train.seed,
                      "log2_table_size": cfg.field.grid.log2_table_size, "threshold": format!("{:?}", cfg.m),
                      "near_limit": crate::eval::NEAR_LIMIT, "prior": format!("{:?}", cfg.prior), "priors": priors, "rows": rows});
     write_atomic(&out.join("table.json"), serde_json::to_string_pretty(&doc).expect("plain JSON").as_bytes())
@@ -336,8 +346,10 @@ impl QualityData {
         let bg_test = crate::app::load_data(bg_dir, "test", &bg_opts)?;
         let (scene_train, scene_test) = load_scene(scene_dir, bg_train.aabb, bg_dir)?;
         let (grid, train) = trainer_settings(None, None, log2t, None, bg_train.had_alpha || scene_train.had_alpha);
-        // The curve's spacing is the measurement's own (`quality::CURVE_EVERY`).
-        let cfg = CompareConfig::new(train, NerfConfig { grid, aabb: bg_train.aabb });
+        // The curve's spacing is the measurement's own (`quality::CURVE_EVERY`); each run's
+        // rays by its capture, as `rnerf compare` does without `--rays`.
+        let cfg =
+            CompareConfig { capture_rays: true, ..CompareConfig::new(train, NerfConfig { grid, aabb: bg_train.aabb }) };
         Ok(QualityData { bg_train, bg_test, scene_train, scene_test, cfg })
     }
 

@@ -73,7 +73,7 @@ pub fn measure(isa: Isa, input: &QualityInputs<'_>) -> Result<QualityFigures, St
         &field,
         cfg.field.aabb,
         input.background_train,
-        &cfg.train,
+        &cfg.train_for(input.background_train),
         None,
         CURVE_EVERY,
         |s, params, occupancy| {

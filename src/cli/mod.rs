@@ -77,8 +77,8 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             "train: --registration-passes counts the passes of a NeRF's --pose-registration on (without --background)",
         ));
     }
-    if let Some(k) = f.pixel_rays {
-        let rays = f.rays.unwrap_or(crate::train::trainer::TRAIN_RAYS);
+    // Without --rays the capture's count is a multiple of K (`trainer::rays_for_capture`).
+    if let (Some(k), Some(rays)) = (f.pixel_rays, f.rays) {
         if !rays.is_multiple_of(k as usize) {
             return Err(err(format!("--pixel-rays: {rays} rays per step are not whole pixels of {k} rays (--rays)")));
         }

@@ -19,6 +19,8 @@ commands:
          half the rays from changed pixels and the rest from pixels whose ray crosses the region,
          the β regularisers at --beta's weights, default 0.02,0.005:
          penalty on unchanged rays, entropy; --prior none: the paper's Residual-NeRF).
+         --rays N: rays per step (default by the capture's size: 1024 from 2 M training pixels,
+         e.g. 50 views of 200x200, in proportion below down to 512 at 1 M pixels and fewer).
          A NeRF with --pose-registration on (for a background whose poses came from a robot
          arm): a first NeRF, every image's pose registered against it, N times (default 1),
          then the run at the registered poses. --image-gains on: learn a gain per image and
@@ -58,7 +60,8 @@ commands:
          [--beta U,E] [--beta-margin N] [--region-floor S|off] [--focus-share F] [--region-vote V,S] [--region-dilate N] [--change-tolerance T[,R]]
          [--frozen-stride N] [--frozen-tail T] [--frozen-coarse T,N|off] [--photo-tail on|off] [--ray-pool N] [--exposure-correction on|off] [--pose-registration on|off]
          [--image-gains on|off] [--pixel-jitter on|off] [--pixel-rays K]
-         (--m-sweep: also score the final models at these σ thresholds, default 3,10,20,40;
+         (--rays: every run's rays per step, default each run's own capture's as for train;
+         --m-sweep: also score the final models at these σ thresholds, default 3,10,20,40;
          --beta: weights of the background-aware methods' β penalty and entropy;
          --beta-margin: pixels around the changed ones the β penalty spares, default 2;
          --region-floor: lift the warm-started residual's raw density in the change region to at

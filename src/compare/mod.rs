@@ -230,6 +230,11 @@ pub struct CompareConfig {
     pub prior: PriorConfig,
     /// Where each trained model is saved as `<scene>_<method>.safetensors` (None: not saved).
     pub models: Option<std::path::PathBuf>,
+    /// Each run (the background's, every method on every scene) draws
+    /// [`rays_for_capture`](crate::train::trainer::rays_for_capture) of its own training set's
+    /// pixels a step instead of `train.rays_per_step` (what `rnerf compare` does without
+    /// `--rays`): [`Self::train_for`].
+    pub capture_rays: bool,
 }
 
 impl CompareConfig {
@@ -246,7 +251,19 @@ impl CompareConfig {
             m_sweep: Vec::new(),
             prior: Default::default(),
             models: None,
+            capture_rays: false,
         }
+    }
+
+    /// The trainer settings of a run on `views`: [`Self::train`], with the rays per step taken
+    /// from the views' pixels when [`Self::capture_rays`].
+    pub fn train_for(&self, views: &[crate::data::View]) -> TrainConfig {
+        let mut t = self.train.clone();
+        if self.capture_rays {
+            let pixels = crate::train::trainer::capture_pixels(views);
+            t.rays_per_step = crate::train::trainer::rays_for_capture(pixels, t.pixel_rays);
+        }
+        t
     }
 }
 
@@ -268,6 +285,8 @@ pub struct MethodResult {
     pub method: Method,
     /// Training seconds (evaluation excluded).
     pub seconds: f64,
+    /// Rays per training step ([`CompareConfig::train_for`]).
+    pub rays_per_step: usize,
     /// Threshold-depth errors after every `eval_every` steps and at the end.
     pub curve: Vec<CurvePoint>,
     /// Final threshold-depth errors (every region).

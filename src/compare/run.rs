@@ -92,8 +92,9 @@ fn run_method<M: Model + ModelFile>(
     let steps = cfg.train.steps;
     let every = if cfg.eval_every == 0 { steps } else { cfg.eval_every };
     let log_every = gcd(10, every);
+    let tcfg = cfg.train_for(train);
     let (params, occupancy) =
-        train_model_from(isa, model, cfg.field.aabb, train, &cfg.train, start, log_every, |s, params, occupancy| {
+        train_model_from(isa, model, cfg.field.aabb, train, &tcfg, start, log_every, |s, params, occupancy| {
             log(method, &s);
             let done = s.step + 1;
             if done % every == 0 || done == steps {
@@ -131,7 +132,17 @@ fn run_method<M: Model + ModelFile>(
         .iter()
         .map(|&m| (m, crop_errors(isa, &scene, test, m, &mut renderer, &mut z, &mut truth)))
         .collect();
-    Ok(MethodResult { method, seconds, curve, threshold, expected, psnr, renders, sweep })
+    Ok(MethodResult {
+        method,
+        seconds,
+        rays_per_step: tcfg.rays_per_step,
+        curve,
+        threshold,
+        expected,
+        psnr,
+        renders,
+        sweep,
+    })
 }
 
 /// Trains and scores every method of `methods` on one scene over the frozen `background`.

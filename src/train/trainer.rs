@@ -49,7 +49,8 @@ use std::time::Instant;
 pub struct TrainConfig {
     /// Optimiser steps. Defaults to [`TRAIN_STEPS`].
     pub steps: u32,
-    /// Rays per step. Defaults to [`TRAIN_RAYS`].
+    /// Rays per step. Defaults to [`TRAIN_RAYS`]; the command line takes [`rays_for_capture`]
+    /// of the training set unless `--rays` says otherwise.
     pub rays_per_step: usize,
     /// Learning rate against step. Defaults to 1e-2, decaying ×0.33 from 60% of the steps every 15%.
     pub schedule: LrSchedule,
@@ -212,8 +213,32 @@ pub const TRAIN_STEPS: u32 = 1000;
 
 /// Default rays per step (fixed per-step costs — Adam over the 16 M grid parameters — are
 /// small beside 1024 rays, and more, smaller steps learn faster per second than 4096-ray ones
-/// here; measured in docs/DECISIONS.md).
+/// here; measured in docs/DECISIONS.md). A small capture takes fewer: [`rays_for_capture`].
 pub const TRAIN_RAYS: usize = 1024;
+
+/// Training pixels from which a step draws all of [`TRAIN_RAYS`] (50 views of 200×200):
+/// [`rays_for_capture`].
+pub const CAPTURE_FULL_PIXELS: u64 = 2_000_000;
+
+/// The rays per step the command line trains with when `--rays` is not given, from the
+/// training set's pixel count: [`TRAIN_RAYS`] from [`CAPTURE_FULL_PIXELS`] up, in proportion
+/// below it down to half of [`TRAIN_RAYS`] (reached at half as many pixels), rounded down to
+/// a multiple of 64 and of `pixel_rays` ([`TrainConfig::pixel_rays`]). A capture with fewer
+/// pixels has fewer distinct rays to learn from: at 25 views of 200×200 half the rays a step
+/// give the same depth in about half the time, at 50 and 100 views they lose the faint glass
+/// (docs/DECISIONS.md, "Rays per step from the capture's size").
+pub fn rays_for_capture(pixels: u64, pixel_rays: u32) -> usize {
+    let full = TRAIN_RAYS as u64;
+    let rays = (full * pixels / CAPTURE_FULL_PIXELS).clamp(full / 2, full) as usize;
+    let k = pixel_rays.max(1) as usize;
+    let rays = rays - rays % 64;
+    rays - rays % k
+}
+
+/// Pixels of a training set (every view's width × height).
+pub fn capture_pixels(views: &[View]) -> u64 {
+    views.iter().map(|v| v.intrinsics.width as u64 * v.intrinsics.height as u64).sum()
+}
 
 impl TrainConfig {
     /// Rays per training pixel ([`Self::pixel_rays`], at least 1): the step's rays come in
@@ -886,6 +911,26 @@ pub fn train_model_from<M: Model>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_small_capture_takes_fewer_rays_a_step() {
+        let px = 200 * 200;
+        // 100 and 50 views of 200×200: every ray; 35: in proportion; 25 and a tiny capture: half.
+        assert_eq!(rays_for_capture(100 * px, 1), TRAIN_RAYS);
+        assert_eq!(rays_for_capture(CAPTURE_FULL_PIXELS, 1), TRAIN_RAYS);
+        assert_eq!(rays_for_capture(35 * px, 1), 704);
+        assert_eq!(rays_for_capture(25 * px, 1), TRAIN_RAYS / 2);
+        assert_eq!(rays_for_capture(32 * 96 * 96, 1), TRAIN_RAYS / 2);
+        assert_eq!(rays_for_capture(0, 1), TRAIN_RAYS / 2);
+        // Whole pixels of K rays, never more than the plain count.
+        for k in 1..=MAX_PIXEL_RAYS {
+            for views in [1, 25, 31, 35, 49, 50, 400] {
+                let rays = rays_for_capture(views * px, k);
+                assert_eq!(rays % k as usize, 0, "K = {k}, {views} views");
+                assert!(rays <= rays_for_capture(views * px, 1) && rays >= TRAIN_RAYS / 2 - 64, "K = {k}");
+            }
+        }
+    }
 
     #[test]
     fn near_gradients_scale_quadratically_up_to_the_distance() {
