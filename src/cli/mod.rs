@@ -304,7 +304,7 @@ mod tests {
             ("eval --model m --data d --depth-only --coarse-start near", "--coarse-start: 'near' is not off"),
             ("eval --model m --data d --depth-only --solid-fraction -1", "--solid-fraction: -1 is outside"),
             ("train --data d --out m --pixel-rays 0", "--pixel-rays: expected"),
-            ("train --data d --out m --pixel-rays 3", "--pixel-rays: 1024 rays per step"),
+            ("train --data d --out m --rays 1024 --pixel-rays 3", "--pixel-rays: 1024 rays per step"),
             ("compare --background b --scene s --out o --rays 500 --pixel-rays 8", "--pixel-rays: 500 rays"),
             ("--json", "expected a command"),
         ] {
@@ -312,5 +312,7 @@ mod tests {
             assert!(e.0.contains(needle), "{bad}: {e}");
             assert!(!e.0.contains('\n'), "{bad}: error must be one line: {e}");
         }
+        // Without --rays the capture's count is whole pixels of K (`trainer::rays_for_capture`).
+        assert!(parse(args("train --data d --out m --pixel-rays 3")).is_ok());
     }
 }
