@@ -117,7 +117,7 @@ pub(super) fn run(a: &crate::cli::CompareArgs) -> Result<(), String> {
     let rays = match cfg.capture_rays {
         false => cfg.train.rays_per_step.to_string(),
         true => {
-            let each: Vec<String> = scenes.iter().map(|s| cfg.train_for(&s.train).rays_per_step.to_string()).collect();
+            let each: Vec<String> = scenes.iter().map(|s| cfg.train.rays_for_views(&s.train).to_string()).collect();
             format!("{} (by each scene's capture)", each.join(","))
         }
     };

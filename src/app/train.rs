@@ -14,7 +14,7 @@ use crate::render::{Aabb, Pose};
 use crate::simd::Isa;
 use crate::train::prior::{residual_start, scene_prior, ColourCorrection, Prior};
 use crate::train::register::{registration_passes, Registration};
-use crate::train::trainer::{capture_pixels, rays_for_capture, TrainConfig, Trainer};
+use crate::train::trainer::{TrainConfig, Trainer};
 use signal_hook::consts::{SIGINT, SIGTERM};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -151,7 +151,7 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
     cfg.photo_tail = a.photo_tail.unwrap_or(cfg.photo_tail);
     cfg.pixel_rays = a.pixel_rays.unwrap_or(cfg.pixel_rays);
     if a.rays.is_none() {
-        cfg.rays_per_step = rays_for_capture(capture_pixels(&data.views), cfg.pixel_rays);
+        cfg.rays_per_step = cfg.rays_for_views(&data.views);
     }
     let isa = Isa::detect();
     describe_run(&cfg, field.grid.log2_table_size, isa);

@@ -231,9 +231,8 @@ pub struct CompareConfig {
     /// Where each trained model is saved as `<scene>_<method>.safetensors` (None: not saved).
     pub models: Option<std::path::PathBuf>,
     /// Each run (the background's, every method on every scene) draws
-    /// [`rays_for_capture`](crate::train::trainer::rays_for_capture) of its own training set's
-    /// pixels a step instead of `train.rays_per_step` (what `rnerf compare` does without
-    /// `--rays`): [`Self::train_for`].
+    /// [`TrainConfig::rays_for_views`] of its own training set a step instead of
+    /// `train.rays_per_step` (what `rnerf compare` does without `--rays`): [`Self::train_for`].
     pub capture_rays: bool,
 }
 
@@ -260,8 +259,7 @@ impl CompareConfig {
     pub fn train_for(&self, views: &[crate::data::View]) -> TrainConfig {
         let mut t = self.train.clone();
         if self.capture_rays {
-            let pixels = crate::train::trainer::capture_pixels(views);
-            t.rays_per_step = crate::train::trainer::rays_for_capture(pixels, t.pixel_rays);
+            t.rays_per_step = t.rays_for_views(views);
         }
         t
     }

@@ -49,8 +49,8 @@ use std::time::Instant;
 pub struct TrainConfig {
     /// Optimiser steps. Defaults to [`TRAIN_STEPS`].
     pub steps: u32,
-    /// Rays per step. Defaults to [`TRAIN_RAYS`]; the command line takes [`rays_for_capture`]
-    /// of the training set unless `--rays` says otherwise.
+    /// Rays per step. Defaults to [`TRAIN_RAYS`]; the command line takes
+    /// [`Self::rays_for_views`] of the training set unless `--rays` says otherwise.
     pub rays_per_step: usize,
     /// Learning rate against step. Defaults to 1e-2, decaying ×0.33 from 60% of the steps every 15%.
     pub schedule: LrSchedule,
@@ -235,12 +235,15 @@ pub fn rays_for_capture(pixels: u64, pixel_rays: u32) -> usize {
     rays - rays % k
 }
 
-/// Pixels of a training set (every view's width × height).
-pub fn capture_pixels(views: &[View]) -> u64 {
-    views.iter().map(|v| v.intrinsics.width as u64 * v.intrinsics.height as u64).sum()
-}
-
 impl TrainConfig {
+    /// [`rays_for_capture`] of the training set `views` (their width × height summed) at this
+    /// config's [`Self::pixel_rays`]: what the command line sets [`Self::rays_per_step`] to
+    /// without `--rays`.
+    pub fn rays_for_views(&self, views: &[View]) -> usize {
+        let pixels = views.iter().map(|v| v.intrinsics.width as u64 * v.intrinsics.height as u64).sum();
+        rays_for_capture(pixels, self.pixel_rays)
+    }
+
     /// Rays per training pixel ([`Self::pixel_rays`], at least 1): the step's rays come in
     /// groups of this many per pixel, and slots and chunks take whole groups.
     pub fn rays_per_pixel(&self) -> usize {
