@@ -18,21 +18,14 @@ import os
 import re
 import sys
 
+from script_args import take
+
 args = sys.argv[1:]
-def option(flag, default):
-    if flag not in args:
-        return default
-    i = args.index(flag)
-    value = args[i + 1]
-    del args[i : i + 2]
-    return value
-
-
-base = option("--base", "default")
-only = option("--names", None)
-SCENES = tuple(option("--scenes", "glass_up,bottle,wine_flat").split(","))
-dex_dir = option("--dex", None)
-dex_views = option("--dex-views", None)
+base = take(args, "--base", "default")
+only = take(args, "--names", None)
+SCENES = tuple(take(args, "--scenes", "glass_up,bottle,wine_flat").split(","))
+dex_dir = take(args, "--dex", None)
+dex_views = take(args, "--dex-views", None)
 dex_tag = f"views{dex_views}_" if dex_views else ""
 runs = {}
 for out in args:
