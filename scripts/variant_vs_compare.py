@@ -53,7 +53,9 @@ def mean(xs):
 
 
 ratios = {run: [] for _, run in runs}
-for seed in range(10):
+stems = [f[: -len(".eval.json")] for f in os.listdir(variant_dir) if f.endswith(".eval.json")]
+seeds = sorted({int(st.rsplit("_s", 1)[1]) for st in stems if st.rsplit("_s", 1)[0].endswith(f"_{name}")})
+for seed in seeds:
     v = [eval_json(variant_dir, name, s, seed) for s in SCENES]
     d = [default(s, seed) for s in SCENES]
     if None in v or None in d:
