@@ -190,15 +190,21 @@ fn demo_writes_data_table_sheets_and_models_the_next_commands_read() {
     let m = residual_nerf::render::DensityThreshold::Sigma(1.0);
     let depth = residual_nerf::render::DepthMethod::Threshold(m);
     let crop = residual_nerf::eval::CropRule::Frame;
-    let eval = |depth_only, solid_fraction, coarse_start| {
+    let eval_tail = |depth_only, solid_fraction, coarse_start, colour_tail| {
         let (background, limit) = (opts.background, None);
-        let eval = app::EvalOptions { depth, crop, limit, background, depth_only, solid_fraction, coarse_start };
+        let eval =
+            app::EvalOptions { depth, crop, limit, background, depth_only, solid_fraction, coarse_start, colour_tail };
         app::evaluate(isa, &scene, &data, &eval, |_| {})
     };
+    let eval = |depth_only, solid_fraction, coarse_start| eval_tail(depth_only, solid_fraction, coarse_start, 0.0);
     let (full, fast) = (eval(false, 0.0, None), eval(true, 0.0, None));
     assert!(full.depth.pixels > 0 && full.psnr.is_finite() && fast.psnr.is_nan());
     assert!(full.depth.holes < full.depth.pixels, "the demo model hits nothing: the comparison would be empty");
     assert_eq!((fast.depth, fast.regions), (full.depth, full.regions));
+    // The colour tail moves the colour by its quadrature error and no threshold depth.
+    let tailed = eval_tail(false, 0.0, None, residual_nerf::render::view::COLOUR_TAIL);
+    assert_eq!((tailed.depth, tailed.regions), (full.depth, full.regions));
+    assert!((tailed.psnr - full.psnr).abs() < 0.5, "PSNR {} with the colour tail, {} without", tailed.psnr, full.psnr);
     // With a solid fraction and the coarse start it scores what the onboard renderer returns
     // at that fraction (4: the demo model is faint, and a smaller one drops none of the cells
     // its rays stop in) and its default start.

@@ -221,14 +221,50 @@ fn march_strided(g: &OccupancyGrid, origin: Vec3, dir: Vec3, stride: u32) -> (Ve
     (t, delta)
 }
 
+/// Checks that `g`'s march at `stride` tiles exactly the lattice steps of its march at stride 1:
+/// each sample a run of up to `stride` consecutive fine steps at the run's middle, `δ` the run's
+/// length, no run longer than one step covering a pinned step (`pinned`) and a pinned step's
+/// sample its fine one; so `Σ δ` agrees, and a constant density gives the same transmittance.
+fn check_runs(
+    g: &OccupancyGrid,
+    origin: Vec3,
+    dir: Vec3,
+    stride: u32,
+    pinned: impl Fn(Vec3) -> bool,
+) -> Result<(), TestCaseError> {
+    let (fine_t, fine_d) = march_strided(g, origin, dir, 1);
+    let (t, d) = march_strided(g, origin, dir, stride);
+    let dt = g.step_size();
+    let mut f = 0;
+    for (&ts, &ds) in t.iter().zip(&d) {
+        let run = (ds / dt).round() as usize;
+        prop_assert!(run >= 1 && run <= stride as usize && (ds - run as f32 * dt).abs() < 1e-6 * run as f32);
+        prop_assert!(f + run <= fine_t.len(), "more steps than the fine march");
+        let (first, last) = (fine_t[f], fine_t[f + run - 1]);
+        prop_assert!((last - first - (run - 1) as f32 * dt).abs() < 1e-4, "a run skips a step");
+        prop_assert!((ts - 0.5 * (first + last)).abs() < 1e-4, "{} is not the run's middle", ts);
+        if run > 1 {
+            prop_assert!(fine_t[f..f + run].iter().all(|&m| !pinned(origin + m * dir)), "a run covers a pinned step");
+        } else if pinned(origin + first * dir) {
+            prop_assert_eq!(ts, first);
+        }
+        f += run;
+    }
+    prop_assert_eq!(f, fine_t.len());
+    let (sum, fine_sum) = (d.iter().sum::<f32>(), fine_d.iter().sum::<f32>());
+    prop_assert!((sum - fine_sum).abs() < 1e-4, "Σδ {} vs {}", sum, fine_sum);
+    let transmittance = |ds: &[f32]| ds.iter().map(|&x| (-7.0 * x).exp()).product::<f32>();
+    prop_assert!((transmittance(&d) - transmittance(&fine_d)).abs() < 1e-4);
+    Ok(())
+}
+
 proptest! {
     #![proptest_config(cases(48))]
 
-    /// With a pinned region, `stride > 1` keeps the samples inside it and merges runs of up to
-    /// `stride` occupied steps outside it: the strided samples tile exactly the lattice steps
-    /// the fine march samples (each a run of consecutive fine steps, none of them pinned when
-    /// the run is longer than one), so `Σ δ` agrees, and a constant density gives the same
-    /// transmittance. Without pins the stride changes nothing.
+    /// `stride > 1` merges runs of up to `stride` occupied steps outside the pinned cells
+    /// (everywhere on a grid without pins) and keeps the samples inside them: the strided
+    /// samples tile exactly the lattice steps the fine march samples ([`check_runs`]). Without
+    /// pins a stride does merge steps (the sphere's cells hold runs longer than one).
     #[test]
     fn a_stride_outside_the_pinned_region_covers_the_same_steps(
         oy in -0.3f32..0.3, oz in -0.3f32..0.3, dy in -0.2f32..0.2, dz in -0.2f32..0.2,
@@ -237,35 +273,15 @@ proptest! {
         let mut g = sphere_grid();
         let origin = Vec3::new(-0.5, 0.5 + oy, 0.5 + oz);
         let dir = Vec3::new(1.0, dy, dz).normalize();
-        prop_assert_eq!(march_strided(&g, origin, dir, stride), march_strided(&g, origin, dir, 1));
+        check_runs(&g, origin, dir, stride, |_| false)?;
+        let (fine, coarse) = (march_strided(&g, origin, dir, 1).0, march_strided(&g, origin, dir, stride).0);
+        prop_assert!(fine.is_empty() || coarse.len() < fine.len(), "no run merged: {} samples", coarse.len());
         // Pin a slab of cells across the sphere (x in x0..x0 + w).
         let r = 32u32;
         let cells: Vec<u32> = (0..r * r * r).filter(|i| (x0..x0 + w).contains(&(i % r))).collect();
         g.pin(&ChangeRegion::from_cells(unit_box(), r, &cells).unwrap());
-        let (fine_t, fine_d) = march_strided(&g, origin, dir, 1);
-        let (t, d) = march_strided(&g, origin, dir, stride);
-        let dt = g.step_size();
         let pinned = |p: Vec3| (x0..x0 + w).contains(&((p.x * r as f32).floor().clamp(0.0, 31.0) as u32));
-        let mut f = 0;
-        for (&ts, &ds) in t.iter().zip(&d) {
-            let run = (ds / dt).round() as usize;
-            prop_assert!(run >= 1 && run <= stride as usize && (ds - run as f32 * dt).abs() < 1e-6 * run as f32);
-            prop_assert!(f + run <= fine_t.len(), "more steps than the fine march");
-            let (first, last) = (fine_t[f], fine_t[f + run - 1]);
-            prop_assert!((last - first - (run - 1) as f32 * dt).abs() < 1e-4, "a run skips a step");
-            prop_assert!((ts - 0.5 * (first + last)).abs() < 1e-4, "{} is not the run's middle", ts);
-            if run > 1 {
-                prop_assert!(fine_t[f..f + run].iter().all(|&m| !pinned(origin + m * dir)), "a run covers a pinned step");
-            } else if pinned(origin + first * dir) {
-                prop_assert_eq!(ts, first);
-            }
-            f += run;
-        }
-        prop_assert_eq!(f, fine_t.len());
-        let (sum, fine_sum) = (d.iter().sum::<f32>(), fine_d.iter().sum::<f32>());
-        prop_assert!((sum - fine_sum).abs() < 1e-4, "Σδ {} vs {}", sum, fine_sum);
-        let transmittance = |ds: &[f32]| ds.iter().map(|&x| (-7.0 * x).exp()).product::<f32>();
-        prop_assert!((transmittance(&d) - transmittance(&fine_d)).abs() < 1e-4);
+        check_runs(&g, origin, dir, stride, pinned)?;
     }
 }
 

@@ -3,13 +3,14 @@
 //! and the depth-only path gives the same threshold depth as the full one, for any number of
 //! samples per round; an earlier compositing stop moves colours by less than the stop and
 //! leaves threshold depth alone, and filled with the ray's own colour it renders a field of
-//! one colour exactly.
+//! one colour exactly; the colour tail leaves threshold depth alone too.
 
 use glam::Vec3;
 use residual_nerf::data::synth;
 use residual_nerf::encoding::HashGridConfig;
 use residual_nerf::field::{Nerf, NerfConfig, NerfField};
 use residual_nerf::mlp::Activation;
+use residual_nerf::render::view::COLOUR_TAIL;
 use residual_nerf::render::{
     composite_ray, pixel_ray, threshold_depth, DensityThreshold, FullOutputs, Intrinsics, OccupancyConfig,
     OccupancyGrid, PackedSamples, Pose, Ray, StopFill, ViewRenderer,
@@ -98,6 +99,30 @@ fn segmented_rendering_equals_whole_ray_compositing() {
                 match stop == 1e-4 {
                     true => assert_eq!(bits(erg.as_flattened()), bits(rgb.as_flattened()), "the default stop"),
                     false => assert!(moved.iter().any(|&d| d > 0.0), "stop {stop} changed no colour"),
+                }
+            }
+            // The colour tail keeps the threshold depth's bits and moves colours by its
+            // quadrature error: little on average at the measured reach, and not at all when off.
+            for reach in [0.0, COLOUR_TAIL, 4.0] {
+                let mut tail = ViewRenderer::new();
+                tail.set_colour_tail(reach);
+                let (mut trg, mut ttz) = (vec![[0.0; 3]; n], vec![0.0; n]);
+                let out = FullOutputs { rgb: &mut trg, expected_z: &mut [], threshold_z: &mut ttz, beta: &mut [] };
+                tail.full(isa, &(&nerf).into(), k, &v.pose, cfg.background, m, out);
+                let bits = |z: &[f32]| z.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&ttz), bits(&tz), "threshold depth with the colour tail at {reach}");
+                let moved: Vec<f32> = trg
+                    .iter()
+                    .zip(&rgb)
+                    .map(|(a, b)| (0..3).map(|c| (a[c] - b[c]).abs()).fold(0f32, f32::max))
+                    .collect();
+                let mean = moved.iter().sum::<f32>() / n as f32;
+                match reach {
+                    0.0 => assert_eq!(bits(trg.as_flattened()), bits(rgb.as_flattened()), "the tail off"),
+                    COLOUR_TAIL => {
+                        assert!(mean < 0.01, "the colour tail at {reach} moved colours by {mean} on average")
+                    }
+                    _ => assert!(moved.iter().any(|&d| d > 0.0), "the colour tail at {reach} changed no colour"),
                 }
             }
             let mut hits = 0;

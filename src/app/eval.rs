@@ -1,6 +1,7 @@
 //! `rnerf eval`: a model against a split's images and ground-truth depth (DESIGN §2.6).
 
 use super::Progress;
+use crate::cli::Rendering;
 use crate::data::{Dataset, LoadOptions};
 use crate::eval::{crop_box, mse, psnr, CropRule, DepthErrors, DepthReport, NEAR_LIMIT};
 use crate::field::model::Model;
@@ -28,6 +29,8 @@ pub struct EvalReport {
     pub solid_fraction: f32,
     /// The depth-only path's coarse start (`None`: every ray marched from the box).
     pub coarse_start: Option<u32>,
+    /// The colour pass's colour tail (0: every lattice step; [`ViewRenderer::set_colour_tail`]).
+    pub colour_tail: f32,
     /// Frames evaluated.
     pub frames: usize,
     /// Frames that had ground-truth depth.
@@ -49,6 +52,7 @@ impl EvalReport {
             "pixels": self.depth.pixels, "holes": self.depth.holes, "depth_kind": "z", "depth_unit": "m",
             "depth_method": method, "depth_only": self.depth_only, "solid_fraction": self.solid_fraction,
             "coarse_start": self.coarse_start,
+            "colour_tail": if self.depth_only { json!(null) } else { json!(self.colour_tail) },
             "regions": self.regions.to_json(),
         })
     }
@@ -80,6 +84,10 @@ pub struct EvalOptions {
     /// ([`ViewRenderer::set_coarse_start`]; `--coarse-start N`); `None` marches every ray from
     /// the box.
     pub coarse_start: Option<u32>,
+    /// Without `depth_only`: the colour pass's colour tail
+    /// ([`ViewRenderer::set_colour_tail`]; `--colour-tail R`, 0 for off): the same threshold
+    /// depths, colour within its quadrature error.
+    pub colour_tail: f32,
 }
 
 /// Renders every view of `data` and scores it.
@@ -90,11 +98,12 @@ pub fn evaluate<M: Model>(
     opts: &EvalOptions,
     mut progress: impl FnMut(usize),
 ) -> EvalReport {
-    let EvalOptions { depth, crop, limit, background, depth_only, solid_fraction, coarse_start } = *opts;
+    let EvalOptions { depth, crop, limit, background, depth_only, solid_fraction, coarse_start, colour_tail } = *opts;
     assert!(!(depth_only && depth == DepthMethod::Expected), "eval: expected depth needs the colour pass");
     let m = depth.threshold();
     let mut renderer = ViewRenderer::<M>::new();
-    let thinned = super::onboard_trades(scene, m, depth_only, solid_fraction, coarse_start, &mut renderer);
+    let colour_tail = if depth_only { 0.0 } else { colour_tail };
+    let thinned = super::onboard_trades(scene, m, depth_only, solid_fraction, coarse_start, colour_tail, &mut renderer);
     let depth_scene = scene.with_grid(thinned.as_ref());
     let mut errors = DepthErrors::default();
     let mut regions = DepthReport::default();
@@ -130,28 +139,37 @@ pub fn evaluate<M: Model>(
         depth_only,
         solid_fraction,
         coarse_start,
+        colour_tail,
         frames: data.views.len(),
         frames_with_depth: with_depth,
     }
 }
 
+/// `rnerf eval`: loads the model and the split, renders them as `rendering` says, scores them
+/// (`crop`, `limit`) and prints the report.
 pub(super) fn run(
     model: &Path,
     data_dir: &Path,
     split: &str,
-    depth: DepthMethod,
+    rendering: &Rendering,
     crop: CropRule,
     limit: Option<f32>,
     json: bool,
-    depth_only: bool,
-    solid_fraction: f32,
-    coarse_start: Option<u32>,
 ) -> Result<(), String> {
     let model = load_model(model)?;
     let opts = LoadOptions::default();
     let data = crate::app::load_data(data_dir, split, &opts)?;
-    let eval =
-        EvalOptions { depth, crop, limit, background: opts.background, depth_only, solid_fraction, coarse_start };
+    let Rendering { depth, depth_only, solid_fraction, coarse_start, colour_tail } = *rendering;
+    let eval = EvalOptions {
+        depth,
+        crop,
+        limit,
+        background: opts.background,
+        depth_only,
+        solid_fraction,
+        coarse_start,
+        colour_tail,
+    };
     let mut progress = Progress::new("eval", data.views.len() as u64);
     let tick = |i: usize| progress.update(i as u64, "views rendered");
     let isa = Isa::detect();

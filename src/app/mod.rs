@@ -30,21 +30,25 @@ pub(crate) fn load_data(
     Ok(data)
 }
 
-/// The depth-only path with the onboard renderer's trades, as `rnerf eval` and `rnerf render`
-/// take them (`--solid-fraction F`, `--coarse-start N|off`): sets `renderer`'s coarse start and
-/// returns the scene's grid thinned to `solid_fraction` of `m` (`None` at 0: every occupied
-/// cell), for [`Scene::with_grid`]. Both trades apply to the depth-only path alone.
+/// The renderer's trades as `rnerf eval` and `rnerf render` take them: the depth-only path's
+/// onboard trades (`--solid-fraction F`, `--coarse-start N|off`) and the colour pass's colour
+/// tail (`--colour-tail R|off`). Sets `renderer`'s coarse start and colour tail and returns the
+/// scene's grid thinned to `solid_fraction` of `m` (`None` at 0: every occupied cell), for
+/// [`Scene::with_grid`]. The first two apply to the depth-only path alone, the tail to the
+/// colour pass alone.
 fn onboard_trades<M: crate::field::model::Model>(
     scene: &crate::render::view::Scene<'_, M>,
     m: crate::render::DensityThreshold,
     depth_only: bool,
     solid_fraction: f32,
     coarse_start: Option<u32>,
+    colour_tail: f32,
     renderer: &mut crate::render::ViewRenderer<M>,
 ) -> Option<crate::geometry::occupancy::OccupancyGrid> {
     assert!(solid_fraction == 0.0 || depth_only, "a solid fraction applies to the depth-only path");
     assert!(coarse_start.is_none() || depth_only, "a coarse start applies to the depth-only path");
     renderer.set_coarse_start(coarse_start);
+    renderer.set_colour_tail(colour_tail);
     (solid_fraction > 0.0).then(|| scene.occupancy.keep_solid(solid_fraction, m.min_sigma()))
 }
 
@@ -95,25 +99,13 @@ pub fn run(command: Command) -> Result<(), Failure> {
             set_threads(args.threads)?;
             train::run(&args)?;
         }
-        Command::Render { model, data, out, split, depth, depth_only, solid_fraction, coarse_start, threads } => {
+        Command::Render { model, data, out, split, rendering, threads } => {
             set_threads(threads)?;
-            render::run(&model, &data, &split, depth, depth_only, solid_fraction, coarse_start, &out)?;
+            render::run(&model, &data, &split, &rendering, &out)?;
         }
-        Command::Eval {
-            model,
-            data,
-            split,
-            depth,
-            crop,
-            limit,
-            json,
-            depth_only,
-            solid_fraction,
-            coarse_start,
-            threads,
-        } => {
+        Command::Eval { model, data, split, rendering, crop, limit, json, threads } => {
             set_threads(threads)?;
-            eval::run(&model, &data, &split, depth, crop, limit, json, depth_only, solid_fraction, coarse_start)?;
+            eval::run(&model, &data, &split, &rendering, crop, limit, json)?;
         }
         Command::Bench { json, reps, log2t, threads, models, data, background_data, scene } => {
             set_threads(threads)?;

@@ -6,6 +6,7 @@
 //! `rnerf eval --depth-only` takes them).
 
 use super::Progress;
+use crate::cli::Rendering;
 use crate::data::{Dataset, LoadOptions};
 use crate::field::model::Model;
 use crate::files::export;
@@ -16,16 +17,7 @@ use crate::render::{FullOutputs, ViewRenderer};
 use crate::simd::Isa;
 use std::path::Path;
 
-pub(super) fn run(
-    model: &Path,
-    data_dir: &Path,
-    split: &str,
-    depth: DepthMethod,
-    depth_only: bool,
-    solid_fraction: f32,
-    coarse_start: Option<u32>,
-    out: &Path,
-) -> Result<(), String> {
+pub(super) fn run(model: &Path, data_dir: &Path, split: &str, how: &Rendering, out: &Path) -> Result<(), String> {
     if out.exists() && !out.is_dir() {
         return Err(format!("{}: --out: not a directory", out.display()));
     }
@@ -34,33 +26,30 @@ pub(super) fn run(
     let data = crate::app::load_data(data_dir, split, &opts)?;
     // Created once the inputs have been read and checked, so a bad input leaves nothing behind.
     std::fs::create_dir_all(out).map_err(|e| format!("{}: --out: cannot create: {e}", out.display()))?;
-    let how = How { depth, depth_only, solid_fraction, coarse_start, background: opts.background };
+    let background = opts.background;
     match &model {
-        LoadedModel::Nerf(n) => render_all(&Scene::from(&**n), &data, &how, out, false),
-        LoadedModel::Residual(r) => render_all(&Scene::from(&**r), &data, &how, out, true),
+        LoadedModel::Nerf(n) => render_all(&Scene::from(&**n), &data, how, background, out, false),
+        LoadedModel::Residual(r) => render_all(&Scene::from(&**r), &data, how, background, out, true),
     }
-}
-
-/// How `rnerf render` renders: the depth method; the depth-only path and its onboard trades
-/// (the solid fraction and the coarse start, as [`super::EvalOptions`] has them); the colour
-/// behind the scene.
-struct How {
-    depth: DepthMethod,
-    depth_only: bool,
-    solid_fraction: f32,
-    coarse_start: Option<u32>,
-    background: [f32; 3],
 }
 
 /// Renders and writes every view; `beta`: also `<name>_beta.png` (where the scene changed);
 /// `depth_only`: threshold depth alone (no RGB, β or point colours).
-fn render_all<M: Model>(scene: &Scene<'_, M>, data: &Dataset, how: &How, out: &Path, beta: bool) -> Result<(), String> {
-    let How { depth, depth_only, solid_fraction, coarse_start, background } = *how;
+fn render_all<M: Model>(
+    scene: &Scene<'_, M>,
+    data: &Dataset,
+    how: &Rendering,
+    background: [f32; 3],
+    out: &Path,
+    beta: bool,
+) -> Result<(), String> {
+    let Rendering { depth, depth_only, solid_fraction, coarse_start, colour_tail } = *how;
     let isa = Isa::detect();
     let m = depth.threshold();
     let beta = beta && !depth_only;
     let mut renderer = ViewRenderer::<M>::new();
-    let thinned = super::onboard_trades(scene, m, depth_only, solid_fraction, coarse_start, &mut renderer);
+    let colour_tail = if depth_only { 0.0 } else { colour_tail };
+    let thinned = super::onboard_trades(scene, m, depth_only, solid_fraction, coarse_start, colour_tail, &mut renderer);
     let depth_scene = scene.with_grid(thinned.as_ref());
     let mut progress = Progress::new("render", data.views.len() as u64);
     for (i, (v, f)) in data.views.iter().zip(&data.frames).enumerate() {

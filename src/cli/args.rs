@@ -7,6 +7,26 @@ use std::path::PathBuf;
 /// Scoring crop of `rnerf eval`.
 pub use crate::eval::CropRule;
 
+/// What `rnerf render` and `rnerf eval` render, and how: the depth, the depth-only path and its
+/// onboard trades, the colour pass's colour tail.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Rendering {
+    /// Depth method (`--depth`, `--m`, `--m-raw`).
+    pub depth: DepthMethod,
+    /// Threshold depth alone: no colour pass, β, expected depth or PSNR (`--depth-only`).
+    pub depth_only: bool,
+    /// The depth-only path's solid fraction, as the onboard renderer's (`--solid-fraction F`,
+    /// with `--depth-only`; default 0: every occupied cell).
+    pub solid_fraction: f32,
+    /// The depth-only path's coarse start, as the onboard renderer's: lattice steps of slack
+    /// before the neighbours' depth (`--coarse-start N|off`, with `--depth-only`; default off).
+    pub coarse_start: Option<u32>,
+    /// The colour pass's colour tail: behind each ray's threshold hit, one sample for up to
+    /// `⌊R / T⌋` lattice steps (`--colour-tail R|off`; default
+    /// [`crate::render::view::COLOUR_TAIL`]; 0: off).
+    pub colour_tail: f32,
+}
+
 /// A parsed command line.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Command {
@@ -24,14 +44,8 @@ pub enum Command {
         out: PathBuf,
         /// Split (`--split`, default `test`).
         split: String,
-        /// Depth method (`--depth`, `--m`, `--m-raw`).
-        depth: DepthMethod,
-        /// Threshold depth alone: no colour, β or expected depth (`--depth-only`).
-        depth_only: bool,
-        /// The depth-only path's solid fraction, as `Eval`'s (`--solid-fraction F`).
-        solid_fraction: f32,
-        /// The depth-only path's coarse start, as `Eval`'s (`--coarse-start N|off`).
-        coarse_start: Option<u32>,
+        /// What is rendered and how.
+        rendering: Rendering,
         /// Worker threads (`--threads`).
         threads: Option<usize>,
     },
@@ -43,22 +57,14 @@ pub enum Command {
         data: PathBuf,
         /// Split (`--split`, default `test`).
         split: String,
-        /// Depth method (`--depth`, `--m`, `--m-raw`).
-        depth: DepthMethod,
         /// Scoring crop (`--crop`, default the frames' own).
         crop: CropRule,
         /// Score only ground truth nearer than this (`--limit`, metres).
         limit: Option<f32>,
         /// One JSON object on stdout (`--json`).
         json: bool,
-        /// Threshold depth alone, no colour pass and no PSNR (`--depth-only`).
-        depth_only: bool,
-        /// The depth-only path's solid fraction, as the onboard renderer's
-        /// (`--solid-fraction F`, with `--depth-only`; default 0: every occupied cell).
-        solid_fraction: f32,
-        /// The depth-only path's coarse start, as the onboard renderer's: lattice steps of slack
-        /// before the neighbours' depth (`--coarse-start N|off`, with `--depth-only`; default off).
-        coarse_start: Option<u32>,
+        /// What is rendered and how.
+        rendering: Rendering,
         /// Worker threads (`--threads`).
         threads: Option<usize>,
     },

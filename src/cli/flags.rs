@@ -67,6 +67,7 @@ pub(super) const FLAGS: &[Flag] = &[
     Flag { name: "depth-only", commands: &["render", "eval"], setting: false },
     Flag { name: "solid-fraction", commands: &["render", "eval"], setting: false },
     Flag { name: "coarse-start", commands: &["render", "eval"], setting: false },
+    Flag { name: "colour-tail", commands: &["render", "eval"], setting: false },
     Flag { name: "m", commands: &["render", "eval", "compare"], setting: false },
     Flag { name: "m-raw", commands: &["render", "eval", "compare"], setting: false },
     Flag { name: "crop", commands: &["eval"], setting: false },
@@ -111,6 +112,8 @@ pub(super) struct Flags {
     pub(super) solid_fraction: Option<f32>,
     /// `--coarse-start N|off` (`Some(None)`: off).
     pub(super) coarse_start: Option<Option<u32>>,
+    /// `--colour-tail R|off` (`Some(0.0)`: off).
+    pub(super) colour_tail: Option<f32>,
     pub(super) background: Option<PathBuf>,
     pub(super) mix: Option<String>,
     pub(super) density_mix: Option<String>,
@@ -344,6 +347,17 @@ impl Flags {
                     })?),
                 });
             }
+            "colour-tail" => {
+                let s = text(p, name)?;
+                self.colour_tail = Some(match s.as_str() {
+                    "off" => 0.0,
+                    _ => s
+                        .parse::<f32>()
+                        .ok()
+                        .filter(|v| *v > 0.0 && *v <= 4.0)
+                        .ok_or_else(|| err(format!("--colour-tail: '{s}' is not off or a reach in (0, 4]")))?,
+                });
+            }
             "fixed-background" => self.fixed_background = true,
             "data" => self.data = Some(path(p, name)?),
             "out" => self.out = Some(path(p, name)?),
@@ -532,6 +546,28 @@ impl Flags {
                 Err(err(format!("{command}: --coarse-start starts the depth-only path's rays; add --depth-only")))
             }
             (c, _) => Ok(c.flatten()),
+        }
+    }
+
+    /// What `command` (`render` or `eval`) renders and how.
+    pub(super) fn rendering(&self, command: &str) -> Result<super::Rendering, CliError> {
+        Ok(super::Rendering {
+            depth: self.depth()?,
+            depth_only: self.depth_only,
+            solid_fraction: self.solid_fraction(command)?,
+            coarse_start: self.coarse_start(command)?,
+            colour_tail: self.colour_tail(command)?,
+        })
+    }
+
+    /// `--colour-tail R|off` of `command`'s colour pass ([`crate::render::view::COLOUR_TAIL`]
+    /// when absent; 0 when off: every lattice step).
+    pub(super) fn colour_tail(&self, command: &str) -> Result<f32, CliError> {
+        match (self.colour_tail, self.depth_only) {
+            (Some(_), true) => {
+                Err(err(format!("{command}: --colour-tail marches the colour pass; --depth-only has none")))
+            }
+            (t, _) => Ok(t.unwrap_or(crate::render::view::COLOUR_TAIL)),
         }
     }
 

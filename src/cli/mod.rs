@@ -6,7 +6,7 @@ mod args;
 mod flags;
 mod usage;
 
-pub use args::{Command, CompareArgs, CropRule, PriorArgs, TrainArgs};
+pub use args::{Command, CompareArgs, CropRule, PriorArgs, Rendering, TrainArgs};
 use flags::{describe, Flags, COMMANDS, FLAGS};
 use std::ffi::OsString;
 use std::fmt;
@@ -123,23 +123,17 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             data: f.need_path("data", &command)?,
             out: f.need_path("out", &command)?,
             split: f.split.clone().unwrap_or_else(|| "test".into()),
-            depth: f.depth()?,
-            depth_only: f.depth_only,
-            solid_fraction: f.solid_fraction(&command)?,
-            coarse_start: f.coarse_start(&command)?,
+            rendering: f.rendering(&command)?,
             threads,
         },
         "eval" => Command::Eval {
             model: f.need_path("model", &command)?,
             data: f.need_path("data", &command)?,
             split: f.split.clone().unwrap_or_else(|| "test".into()),
-            depth: f.depth()?,
+            rendering: f.rendering(&command)?,
             crop: f.crop.unwrap_or(CropRule::Frame),
             limit: f.limit,
             json: f.json,
-            depth_only: f.depth_only,
-            solid_fraction: f.solid_fraction(&command)?,
-            coarse_start: f.coarse_start(&command)?,
             threads,
         },
         "compare" => Command::Compare(CompareArgs {
@@ -306,11 +300,26 @@ mod tests {
             ("train --data d --out m --pixel-rays 0", "--pixel-rays: expected"),
             ("train --data d --out m --rays 1024 --pixel-rays 3", "--pixel-rays: 1024 rays per step"),
             ("compare --background b --scene s --out o --rays 500 --pixel-rays 8", "--pixel-rays: 500 rays"),
+            ("eval --model m --data d --depth-only --colour-tail 0.4", "eval: --colour-tail marches the colour pass"),
+            ("render --model m --data d --out o --colour-tail 0", "--colour-tail: '0' is not off"),
+            ("eval --model m --data d --colour-tail far", "--colour-tail: 'far' is not off"),
+            ("compare --background b --scene s --out o --colour-tail 1", "unexpected argument '--colour-tail'"),
             ("--json", "expected a command"),
         ] {
             let e = parse(args(bad)).unwrap_err();
             assert!(e.0.contains(needle), "{bad}: {e}");
             assert!(!e.0.contains('\n'), "{bad}: error must be one line: {e}");
+        }
+        // The colour tail: on by default, off on request.
+        for (line, want) in [
+            ("eval --model m --data d", crate::render::view::COLOUR_TAIL),
+            ("eval --model m --data d --colour-tail off", 0.0),
+            ("eval --model m --data d --colour-tail 1.5", 1.5),
+        ] {
+            match parse(args(line)) {
+                Ok(Command::Eval { rendering, .. }) => assert_eq!(rendering.colour_tail, want, "{line}"),
+                other => panic!("{line} parsed as {other:?}"),
+            }
         }
         // Without --rays the capture's count is whole pixels of K (`trainer::rays_for_capture`).
         assert!(parse(args("train --data d --out m --pixel-rays 3")).is_ok());

@@ -39,15 +39,20 @@ commands:
          [--checkpoint-every N]
          continue an interrupted run bit-exactly, with the checkpoint's settings, on the same data
   render --model MODEL --data DIR --out DIR [--split NAME] [--depth threshold|expected]
-         [--m M | --m-raw S] [--depth-only [--solid-fraction F] [--coarse-start N|off]] [--threads N]
+         [--m M | --m-raw S] [--colour-tail R|off] [--depth-only [--solid-fraction F] [--coarse-start N|off]]
+         [--threads N]
          depth (EXR metres, 16-bit PNG mm, .npy metres, colourised PNG), PLY point cloud (world
          frame) and RGB of the split's views (--depth-only: threshold depth and an uncoloured
          point cloud, without the colour pass; --solid-fraction 0.5 --coarse-start 1 render it
-         as the onboard renderer does by default, see eval)
+         as the onboard renderer does by default; --colour-tail: see eval)
   eval   --model MODEL --data DIR [--split NAME] [--depth threshold|expected] [--m M | --m-raw S]
-         [--crop frame|full|HALF] [--limit METRES] [--json] [--depth-only [--solid-fraction F] [--coarse-start N|off]]
-         [--threads N]
+         [--crop frame|full|HALF] [--limit METRES] [--json] [--colour-tail R|off]
+         [--depth-only [--solid-fraction F] [--coarse-start N|off]] [--threads N]
          depth MAE / RMSE / hole rate inside the crops, and PSNR (default split: test;
+         --colour-tail R: behind each ray's threshold hit the colour pass takes one sample for
+         up to R/T lattice steps, T the ray's transmittance, at most 16; the same threshold
+         depth, PSNR within its quadrature error; default 0.4, off: every step, as compare's
+         curves;
          --depth-only: the same threshold-depth figures without the colour pass, no PSNR;
          --solid-fraction F: as the onboard renderer, skip the cells whose occupancy stayed
          below F·m, default 0: every occupied cell; --coarse-start N: as the onboard renderer,

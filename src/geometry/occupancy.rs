@@ -297,6 +297,11 @@ impl OccupancyGrid {
         self.frozen
     }
 
+    /// Whether the grid has pinned cells ([`OccupancyGrid::pin`]).
+    pub fn is_pinned(&self) -> bool {
+        self.pinned.is_some()
+    }
+
     /// Keeps `region`'s cells occupied from now on, whatever the field's density there (a
     /// residual model's change region: where a new object may stand in what was empty air, so
     /// the residual must be sampled before it has any density). Pins carry over clones and
@@ -424,12 +429,11 @@ impl OccupancyGrid {
     /// (`≥ steps.end` once the range is done). Segments concatenate to exactly
     /// [`Self::march`]'s samples, and a sample's `t` depends only on its step.
     ///
-    /// `stride > 1` on a grid with a pinned region (a residual model's change region, outside
-    /// which its field is the frozen background): outside the pinned cells one sample stands
-    /// for a run of up to `stride` consecutive occupied steps, at the run's middle with
-    /// `δ = run · step`. Runs end before an empty or a pinned step, so the samples cover the
-    /// same lattice steps as with `stride = 1` (the same `Σ δ`) and those inside the pinned
-    /// cells are the same samples. `stride = 1`, or a grid without pins: every step.
+    /// `stride > 1`: outside the pinned cells (a residual model's change region; everywhere on
+    /// a grid without pins) one sample stands for a run of up to `stride` consecutive occupied
+    /// steps, at the run's middle with `δ = run · step`. Runs end before an empty or a pinned
+    /// step, so the samples cover the same lattice steps as with `stride = 1` (the same `Σ δ`)
+    /// and those inside the pinned cells are the same samples. `stride = 1`: every step.
     #[allow(clippy::too_many_arguments)]
     pub fn march_segment(
         &self,
@@ -442,7 +446,7 @@ impl OccupancyGrid {
         ts: &mut Vec<f32>,
         deltas: &mut Vec<f32>,
     ) -> u32 {
-        let pinned = self.pinned.as_deref().filter(|_| stride > 1);
+        let pins = self.pinned.as_deref();
         let bit = |bits: &[u64], i: usize| bits[i / 64] >> (i % 64) & 1 == 1;
         let res = self.config.resolution as i32;
         let r = res as f32;
@@ -459,10 +463,10 @@ impl OccupancyGrid {
             let i = self.index_of_cell(c);
             if bit(&self.bits, i) {
                 let mut run = 1;
-                if let Some(p) = pinned.filter(|p| !bit(p, i)) {
+                if stride > 1 && pins.is_none_or(|p| !bit(p, i)) {
                     while run < stride && k + run < end {
                         let i = self.index_of_cell(floor3(q0 + (near + ((k + run) as f32 + 0.5) * dt) * dq));
-                        if !bit(&self.bits, i) || bit(p, i) {
+                        if !bit(&self.bits, i) || pins.is_some_and(|p| bit(p, i)) {
                             break;
                         }
                         run += 1;

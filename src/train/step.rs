@@ -101,7 +101,8 @@ pub(super) enum Flow {
 /// (with the arrays so far); stops after a segment for which it returns [`Flow::Stop`], at the
 /// end of the ray's span, or at the grid's sample budget. `strides`: lattice steps a sample
 /// stands for outside the grid's pinned cells ([`OccupancyGrid::march_segment`]), before and
-/// after a [`Flow::Coarsen`]. The segments concatenate to exactly the samples of marching the
+/// after a [`Flow::Coarsen`], where the field is the frozen background; a grid without pins
+/// has no frozen part and marches every step. The segments concatenate to exactly the samples of marching the
 /// whole ray (at the coarse stride from the sample the callback names): which samples a ray
 /// takes does not depend on `len`. The training step's rays and the ray pool's
 /// ([`super::pool`]) march this way.
@@ -116,6 +117,7 @@ pub(super) fn march_in_segments(
 ) {
     let Some(span) = occ.span(r.origin, r.dir) else { return };
     let max = occ.config().max_samples;
+    let (stride, coarse_stride) = if occ.is_pinned() { (stride, coarse_stride) } else { (1, 1) };
     let (mut next, mut taken, mut stride) = (0, 0u32, stride);
     loop {
         let s0 = t.len();
