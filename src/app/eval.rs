@@ -41,6 +41,8 @@ impl EvalReport {
     /// The `--json` object.
     pub fn to_json(&self, depth: DepthMethod) -> serde_json::Value {
         let num = |x: f64| if x.is_finite() { json!(x) } else { json!(null) };
+        // A setting as it was typed: the f64 of the f32's shortest decimal (0.4, not 0.4000000059604645).
+        let setting = |x: f32| json!(x.to_string().parse::<f64>().unwrap_or(f64::NAN));
         let method = match depth {
             DepthMethod::Expected => "expected".to_string(),
             DepthMethod::Threshold(crate::render::DensityThreshold::Sigma(m)) => format!("threshold sigma>={m}"),
@@ -50,9 +52,9 @@ impl EvalReport {
             "mae": num(self.depth.mae()), "rmse": num(self.depth.rmse()), "hole_rate": num(self.depth.hole_rate()),
             "psnr": num(self.psnr), "frames": self.frames, "frames_with_depth": self.frames_with_depth,
             "pixels": self.depth.pixels, "holes": self.depth.holes, "depth_kind": "z", "depth_unit": "m",
-            "depth_method": method, "depth_only": self.depth_only, "solid_fraction": self.solid_fraction,
+            "depth_method": method, "depth_only": self.depth_only, "solid_fraction": setting(self.solid_fraction),
             "coarse_start": self.coarse_start,
-            "colour_tail": if self.depth_only { json!(null) } else { json!(self.colour_tail) },
+            "colour_tail": if self.depth_only { json!(null) } else { setting(self.colour_tail) },
             "regions": self.regions.to_json(),
         })
     }

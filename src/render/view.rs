@@ -59,9 +59,9 @@ const MAX_SEGMENT: usize = 128;
 /// The most lattice steps one sample of the colour tail stands for
 /// ([`ViewRenderer::set_colour_tail`]).
 pub const COLOUR_TAIL_MAX_STRIDE: u32 = 16;
-/// The colour tail's reach measured for `rnerf eval` and `rnerf render` (`--colour-tail`): on
-/// the dev models the colour pass takes 0.53–0.61× the time and loses 0.01–0.02 dB of PSNR at
-/// 0.4 (docs/DECISIONS.md, "The colour tail").
+/// The colour tail's reach of `rnerf eval` and `rnerf render` (`--colour-tail`): on the dev
+/// models their colour pass takes 0.50–0.60× the time at 0.4 and its PSNR moves by 0.008–0.012
+/// dB (docs/DECISIONS.md, "The colour tail").
 pub const COLOUR_TAIL: f32 = 0.4;
 
 /// A view's camera, pose and depth threshold.
