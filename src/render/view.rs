@@ -60,7 +60,7 @@ const MAX_SEGMENT: usize = 128;
 /// ([`ViewRenderer::set_colour_tail`]).
 pub const COLOUR_TAIL_MAX_STRIDE: u32 = 16;
 /// The colour tail's reach of `rnerf eval` and `rnerf render` (`--colour-tail`): on the dev
-/// models their colour pass takes 0.50–0.60× the time at 0.4 and its PSNR moves by 0.008–0.012
+/// models their colour pass takes 0.43–0.62× the time at 0.4 and its PSNR moves by 0.008–0.013
 /// dB (docs/DECISIONS.md, "The colour tail").
 pub const COLOUR_TAIL: f32 = 0.4;
 
