@@ -435,7 +435,7 @@ impl<M: Model> ViewRenderer<M> {
         let n = self.pixels.len();
         let tile = (TILE_PIXELS / k.width as usize).max(1) * k.width as usize;
         let first = if full { FIRST_SEGMENT } else { self.depth_round };
-        let early = (self.stop, self.fill, self.colour_tail);
+        let compositing = (self.stop, self.fill, self.colour_tail);
         let threads = rayon::current_num_threads().clamp(1, n.div_ceil(tile).max(1));
         if self.workers.len() < threads {
             self.workers.resize_with(threads, Worker::default);
@@ -453,7 +453,7 @@ impl<M: Model> ViewRenderer<M> {
         self.workers[..threads].par_iter_mut().for_each(|w| {
             while let Some((range, out)) = next_tile() {
                 let start = (starts.len() == n).then(|| (&starts[range.clone()], slack));
-                w.run_tile(isa, scene, k, pose, &pixels[range], start, m, full, first, early, background, out);
+                w.run_tile(isa, scene, k, pose, &pixels[range], start, m, full, first, compositing, background, out);
             }
         });
     }
