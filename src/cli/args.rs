@@ -23,7 +23,7 @@ pub struct Rendering {
     pub coarse_start: Option<u32>,
     /// The colour pass's colour tail: behind each ray's threshold hit, one sample for up to
     /// `⌊R / T⌋` lattice steps (`--colour-tail R|off`; default
-    /// [`crate::render::view::COLOUR_TAIL`]; 0: off).
+    /// [`crate::render::view::COLOUR_TAIL`], 0 with `--depth expected`; 0: off).
     pub colour_tail: f32,
 }
 

@@ -556,18 +556,22 @@ impl Flags {
             depth_only: self.depth_only,
             solid_fraction: self.solid_fraction(command)?,
             coarse_start: self.coarse_start(command)?,
-            colour_tail: self.colour_tail(command)?,
+            colour_tail: self.colour_tail(command, self.depth()?)?,
         })
     }
 
     /// `--colour-tail R|off` of `command`'s colour pass ([`crate::render::view::COLOUR_TAIL`]
     /// when absent; 0 when off: every lattice step).
-    pub(super) fn colour_tail(&self, command: &str) -> Result<f32, CliError> {
+    /// With `--depth expected` the depth comes from the colour pass, so the tail is off unless
+    /// asked for: the command's depth stays the exact pass's either way.
+    pub(super) fn colour_tail(&self, command: &str, depth: DepthMethod) -> Result<f32, CliError> {
         match (self.colour_tail, self.depth_only) {
             (Some(_), true) => {
                 Err(err(format!("{command}: --colour-tail marches the colour pass; --depth-only has none")))
             }
-            (t, _) => Ok(t.unwrap_or(crate::render::view::COLOUR_TAIL)),
+            (Some(t), false) => Ok(t),
+            (None, _) if depth == DepthMethod::Expected => Ok(0.0),
+            (None, _) => Ok(crate::render::view::COLOUR_TAIL),
         }
     }
 

@@ -310,11 +310,14 @@ mod tests {
             assert!(e.0.contains(needle), "{bad}: {e}");
             assert!(!e.0.contains('\n'), "{bad}: error must be one line: {e}");
         }
-        // The colour tail: on by default, off on request.
+        // The colour tail: on by default (threshold depth), off on request.
         for (line, want) in [
             ("eval --model m --data d", crate::render::view::COLOUR_TAIL),
             ("eval --model m --data d --colour-tail off", 0.0),
             ("eval --model m --data d --colour-tail 1.5", 1.5),
+            // Expected depth comes from the colour pass: exact unless the tail is asked for.
+            ("eval --model m --data d --depth expected", 0.0),
+            ("eval --model m --data d --depth expected --colour-tail 0.4", 0.4),
         ] {
             match parse(args(line)) {
                 Ok(Command::Eval { rendering, .. }) => assert_eq!(rendering.colour_tail, want, "{line}"),

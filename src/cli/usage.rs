@@ -51,8 +51,8 @@ commands:
          depth MAE / RMSE / hole rate inside the crops, and PSNR (default split: test;
          --colour-tail R: behind each ray's threshold hit the colour pass takes one sample for
          up to R/T lattice steps, T the ray's transmittance, at most 16; the same threshold
-         depth, PSNR within its quadrature error; default 0.4, off: every step, as compare's
-         curves;
+         depth, PSNR within its quadrature error; default 0.4 (off with --depth expected, whose
+         depth comes from that pass), off: every step, as compare's curves;
          --depth-only: the same threshold-depth figures without the colour pass, no PSNR;
          --solid-fraction F: as the onboard renderer, skip the cells whose occupancy stayed
          below F·m, default 0: every occupied cell; --coarse-start N: as the onboard renderer,
