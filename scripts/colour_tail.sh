@@ -1,11 +1,11 @@
 #!/usr/bin/env bash
 # The colour tail's cost and gain: `rnerf eval --json` (colour + threshold depth) of each
-# MODEL:SCENE, with the default colour tail and with `--colour-tail off`, one after the other,
-# for ROUNDS rounds at each CPU level of LEVELS. Writes OUT/MODEL_{default,off}_LEVEL_ROUND.json
-# and one line per run to OUT/colour_tail.log: level, round, model, setting, wall seconds,
-# PSNR, crop MAE. Run it alone, in its own autogroup (BENCHMARKS.md): only the ratios within a
-# round are comparable.
-# usage: LEVELS="avx2 avx512" ROUNDS=2 scripts/colour_tail.sh RNERF DEV_DIR OUT MODEL.safetensors:SCENE [...]
+# MODEL:SCENE at each setting of SETTINGS (default "default off": the default colour tail and
+# `--colour-tail off`; a number R is `--colour-tail R`), one after the other, for ROUNDS rounds
+# at each CPU level of LEVELS. Writes OUT/MODEL_SETTING_LEVEL_ROUND.json and one line per run to
+# OUT/colour_tail.log: level, round, model, setting, wall seconds, PSNR, crop MAE. Run it alone,
+# in its own autogroup (BENCHMARKS.md): only the ratios within a round are comparable.
+# usage: LEVELS="avx2 avx512" ROUNDS=2 [SETTINGS="off 0.2 0.4"] scripts/colour_tail.sh RNERF DEV_DIR OUT MODEL.safetensors:SCENE [...]
 set -euo pipefail
 rnerf=$1 dev=$2 out=$3
 shift 3
@@ -15,9 +15,9 @@ for level in ${LEVELS:-avx2}; do
     for spec in "$@"; do
       model=${spec%%:*} scene=${spec#*:}
       name=$(basename "$model" .safetensors)
-      for setting in default off; do
+      for setting in ${SETTINGS:-default off}; do
         flags=()
-        [ "$setting" = off ] && flags=(--colour-tail off)
+        [ "$setting" != default ] && flags=(--colour-tail "$setting")
         json=$out/${name}_${setting}_${level}_$round.json
         /usr/bin/time -f "%e" -o "$out/time.txt" env RNERF_CPU_LEVEL="$level" \
           "$rnerf" eval --model "$model" --data "$dev/$scene" --json "${flags[@]}" > "$json" 2> /dev/null

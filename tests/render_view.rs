@@ -35,6 +35,16 @@ fn whole_ray(
     (ray, s, pos, dirs)
 }
 
+/// The bits of `z`, for comparisons that must be exact.
+fn bits(z: &[f32]) -> Vec<u32> {
+    z.iter().map(|x| x.to_bits()).collect()
+}
+
+/// Per pixel, how far the colour `a` moved from `b` (the largest channel's difference).
+fn moved(a: &[[f32; 3]], b: &[[f32; 3]]) -> Vec<f32> {
+    a.iter().zip(b).map(|(a, b)| (0..3).map(|c| (a[c] - b[c]).abs()).fold(0f32, f32::max)).collect()
+}
+
 #[test]
 fn segmented_rendering_equals_whole_ray_compositing() {
     let scene = synth::tabletop(16, 12, 0.0);
@@ -79,21 +89,23 @@ fn segmented_rendering_equals_whole_ray_compositing() {
                 other.set_depth_round(round);
                 let mut oz = vec![0.0; n];
                 other.depth(isa, &(&nerf).into(), k, &v.pose, m, &mut oz);
-                let bits = |z: &[f32]| z.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
                 assert_eq!(bits(&oz), bits(&dz), "depth rounds of {round} samples");
             }
+            // The full pass of a renderer set up another way: its colours and threshold depths.
+            let full = |r: &mut ViewRenderer| {
+                let (mut rgb, mut tz) = (vec![[0.0; 3]; n], vec![0.0; n]);
+                let out = FullOutputs { rgb: &mut rgb, expected_z: &mut [], threshold_z: &mut tz, beta: &mut [] };
+                r.full(isa, &(&nerf).into(), k, &v.pose, cfg.background, m, out);
+                (rgb, tz)
+            };
             // An earlier stop moves every colour channel by less than the stop and leaves the
             // threshold depth's bits; at the default it is the same render.
             for stop in [1e-4, 0.01, 0.1] {
                 let mut early = ViewRenderer::new();
                 early.set_early_stop(stop, StopFill::Background);
-                let (mut erg, mut etz) = (vec![[0.0; 3]; n], vec![0.0; n]);
-                let out = FullOutputs { rgb: &mut erg, expected_z: &mut [], threshold_z: &mut etz, beta: &mut [] };
-                early.full(isa, &(&nerf).into(), k, &v.pose, cfg.background, m, out);
-                let bits = |z: &[f32]| z.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                let (erg, etz) = full(&mut early);
                 assert_eq!(bits(&etz), bits(&tz), "threshold depth with the stop at {stop}");
-                let moved = erg.iter().zip(&rgb).map(|(a, b)| (0..3).map(|c| (a[c] - b[c]).abs()).fold(0f32, f32::max));
-                let moved: Vec<f32> = moved.collect();
+                let moved = moved(&erg, &rgb);
                 let most = moved.iter().fold(0f32, |a, &b| a.max(b));
                 assert!(most < stop, "stop {stop}: a colour moved by {most}");
                 match stop == 1e-4 {
@@ -106,16 +118,9 @@ fn segmented_rendering_equals_whole_ray_compositing() {
             for reach in [0.0, COLOUR_TAIL, 4.0] {
                 let mut tail = ViewRenderer::new();
                 tail.set_colour_tail(reach);
-                let (mut trg, mut ttz) = (vec![[0.0; 3]; n], vec![0.0; n]);
-                let out = FullOutputs { rgb: &mut trg, expected_z: &mut [], threshold_z: &mut ttz, beta: &mut [] };
-                tail.full(isa, &(&nerf).into(), k, &v.pose, cfg.background, m, out);
-                let bits = |z: &[f32]| z.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                let (trg, ttz) = full(&mut tail);
                 assert_eq!(bits(&ttz), bits(&tz), "threshold depth with the colour tail at {reach}");
-                let moved: Vec<f32> = trg
-                    .iter()
-                    .zip(&rgb)
-                    .map(|(a, b)| (0..3).map(|c| (a[c] - b[c]).abs()).fold(0f32, f32::max))
-                    .collect();
+                let moved = moved(&trg, &rgb);
                 let mean = moved.iter().sum::<f32>() / n as f32;
                 match reach {
                     0.0 => assert_eq!(bits(trg.as_flattened()), bits(rgb.as_flattened()), "the tail off"),

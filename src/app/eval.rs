@@ -29,7 +29,8 @@ pub struct EvalReport {
     pub solid_fraction: f32,
     /// The depth-only path's coarse start (`None`: every ray marched from the box).
     pub coarse_start: Option<u32>,
-    /// The colour pass's colour tail (0: every lattice step; [`ViewRenderer::set_colour_tail`]).
+    /// The colour pass's colour tail (0: every lattice step; [`ViewRenderer::set_colour_tail`];
+    /// left out of the JSON of a depth-only evaluation, which has no colour pass).
     pub colour_tail: f32,
     /// Frames evaluated.
     pub frames: usize,
@@ -104,7 +105,6 @@ pub fn evaluate<M: Model>(
     assert!(!(depth_only && depth == DepthMethod::Expected), "eval: expected depth needs the colour pass");
     let m = depth.threshold();
     let mut renderer = ViewRenderer::<M>::new();
-    let colour_tail = if depth_only { 0.0 } else { colour_tail };
     let thinned = super::onboard_trades(scene, m, depth_only, solid_fraction, coarse_start, colour_tail, &mut renderer);
     let depth_scene = scene.with_grid(thinned.as_ref());
     let mut errors = DepthErrors::default();

@@ -35,7 +35,7 @@ pub(crate) fn load_data(
 /// tail (`--colour-tail R|off`). Sets `renderer`'s coarse start and colour tail and returns the
 /// scene's grid thinned to `solid_fraction` of `m` (`None` at 0: every occupied cell), for
 /// [`Scene::with_grid`]. The first two apply to the depth-only path alone, the tail to the
-/// colour pass alone.
+/// colour pass alone (the depth-only path never reads it).
 fn onboard_trades<M: crate::field::model::Model>(
     scene: &crate::render::view::Scene<'_, M>,
     m: crate::render::DensityThreshold,

@@ -48,7 +48,6 @@ fn render_all<M: Model>(
     let m = depth.threshold();
     let beta = beta && !depth_only;
     let mut renderer = ViewRenderer::<M>::new();
-    let colour_tail = if depth_only { 0.0 } else { colour_tail };
     let thinned = super::onboard_trades(scene, m, depth_only, solid_fraction, coarse_start, colour_tail, &mut renderer);
     let depth_scene = scene.with_grid(thinned.as_ref());
     let mut progress = Progress::new("render", data.views.len() as u64);

@@ -551,27 +551,29 @@ impl Flags {
 
     /// What `command` (`render` or `eval`) renders and how.
     pub(super) fn rendering(&self, command: &str) -> Result<super::Rendering, CliError> {
+        let depth = self.depth()?;
         Ok(super::Rendering {
-            depth: self.depth()?,
+            depth,
             depth_only: self.depth_only,
             solid_fraction: self.solid_fraction(command)?,
             coarse_start: self.coarse_start(command)?,
-            colour_tail: self.colour_tail(command, self.depth()?)?,
+            colour_tail: self.colour_tail(command, depth)?,
         })
     }
 
     /// `--colour-tail R|off` of `command`'s colour pass ([`crate::render::view::COLOUR_TAIL`]
-    /// when absent; 0 when off: every lattice step).
-    /// With `--depth expected` the depth comes from the colour pass, so the tail is off unless
-    /// asked for: the command's depth stays the exact pass's either way.
+    /// when absent; 0 when off: every lattice step; 0 with `--depth-only`, which has no colour
+    /// pass). With `--depth expected` the depth comes from the colour pass, so the tail is off
+    /// unless asked for: the command's depth stays the exact pass's either way.
     pub(super) fn colour_tail(&self, command: &str, depth: DepthMethod) -> Result<f32, CliError> {
         match (self.colour_tail, self.depth_only) {
             (Some(_), true) => {
                 Err(err(format!("{command}: --colour-tail marches the colour pass; --depth-only has none")))
             }
             (Some(t), false) => Ok(t),
-            (None, _) if depth == DepthMethod::Expected => Ok(0.0),
-            (None, _) => Ok(crate::render::view::COLOUR_TAIL),
+            (None, true) => Ok(0.0),
+            (None, false) if depth == DepthMethod::Expected => Ok(0.0),
+            (None, false) => Ok(crate::render::view::COLOUR_TAIL),
         }
     }
 

@@ -318,6 +318,7 @@ mod tests {
             // Expected depth comes from the colour pass: exact unless the tail is asked for.
             ("eval --model m --data d --depth expected", 0.0),
             ("eval --model m --data d --depth expected --colour-tail 0.4", 0.4),
+            ("eval --model m --data d --depth-only", 0.0),
         ] {
             match parse(args(line)) {
                 Ok(Command::Eval { rendering, .. }) => assert_eq!(rendering.colour_tail, want, "{line}"),
