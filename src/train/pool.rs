@@ -615,14 +615,22 @@ mod tests {
     /// The segment length is a cost, not a result: marching a ray in segments of 1, 7, 32 or
     /// 500 samples keeps the same samples, puts the same rays in each chunk (chunks close on
     /// kept samples) and gives the same loss and gradients bit for bit, with the frozen tail
-    /// on (rays stop mid-segment) and off (rays run to their opaque point).
+    /// on (rays stop mid-segment) and off (rays run to their opaque point), and with the photo
+    /// tail (rays stop before the first sample past the region's box, which is not evaluated).
     #[test]
     fn a_step_has_the_same_bits_whatever_the_segment_length() {
-        frozen_outside_step(|rays, run, cfg, _| {
-            for (tau, coarse) in [(0.0f32, 0.0f32), (0.3, 0.0), (0.05, 0.5)] {
+        frozen_outside_step(|plain, run, cfg, background_light| {
+            let mut with_photo = plain.clone();
+            let light = BackgroundColours::new(&[background_light(plain)]);
+            with_photo.behind = (0..plain.rays.len()).map(|i| light.get(0, i)).collect();
+            for (tau, coarse, photo) in
+                [(0.0f32, 0.0f32, false), (0.3, 0.0, false), (0.05, 0.5, false), (0.0, 0.0, true)]
+            {
                 let mut c = cfg.clone();
                 c.frozen_tail = tau;
                 (c.frozen_coarse, c.frozen_coarse_stride) = (coarse, 4);
+                c.photo_tail = photo;
+                let rays = if photo { &with_photo } else { plain };
                 let reference = run(Some(RAY_SEGMENT), &c, rays);
                 assert!(reference.1 > 0 && reference.2.iter().any(|g| g.iter().any(|&v| v != 0.0)));
                 if coarse > 0.0 {
@@ -635,7 +643,7 @@ mod tests {
                     let step = run(Some(segment), &c, rays);
                     assert!(
                         step == reference,
-                        "τ = {tau}, coarse below {coarse}: segments of {segment} change the step"
+                        "τ = {tau}, coarse below {coarse}, photo tail {photo}: segments of {segment} change the step"
                     );
                 }
             }

@@ -77,8 +77,9 @@ pub(super) fn slot_rays(n: usize, k: usize, s: usize) -> std::ops::Range<usize> 
 pub const CHUNK_SAMPLES: usize = 128;
 
 /// Samples of each evaluated segment of a training ray. A ray's densities are evaluated only
-/// up to the end of the segment in which it stops (opaque, or at the frozen tail), so a shorter
-/// segment evaluates fewer samples past the stop and costs more calls; which samples are kept,
+/// up to the end of the segment in which it stops (opaque, or at the frozen tail; at the photo
+/// tail, whose stop is known from `t` alone, up to the stop), so a shorter segment evaluates
+/// fewer samples past the stop and costs more calls; which samples are kept,
 /// and every bit of the step, do not depend on it (test
 /// `a_step_has_the_same_bits_whatever_the_segment_length`). 32: docs/DECISIONS.md, "The frozen
 /// tail".
@@ -90,6 +91,9 @@ pub(super) enum Flow {
     Go,
     /// The ray stopped (opaque, or at the frozen tail).
     Stop,
+    /// The ray stopped before sample `i` (at the photo tail): the samples from `i` on are
+    /// dropped unevaluated (the callback has no rows of them).
+    StopBefore(usize),
     /// Keep the samples up to index `i` and march the rest of the ray at the coarse stride
     /// from the end of sample `i`: the samples after `i` are dropped (the callback drops its
     /// own rows of them). [`TrainConfig::frozen_coarse`].
@@ -131,6 +135,11 @@ pub(super) fn march_in_segments(
         match segment(t, delta, s0..s0 + count) {
             Flow::Go => {}
             Flow::Stop => break,
+            Flow::StopBefore(i) => {
+                t.truncate(i);
+                delta.truncate(i);
+                break;
+            }
             Flow::Coarsen(i) => {
                 // Sample i stands for the lattice steps [k, k + run) around its midpoint
                 // t = near + (k + run/2)·dt, δ = run·dt: the march resumes at k + run.
@@ -523,7 +532,7 @@ impl<C> Worker<C> {
     /// [`Worker::run_chunk`] lets that last sample's colour stand for its light.
     ///
     /// With the photo tail (`photo`) the ray stops before its first sample beyond the region's
-    /// bounding box instead.
+    /// bounding box instead; that sample and the segment's later ones are not evaluated.
     fn add_ray<M: Model<Chunk = C>>(&mut self, x: &StepInputs<M>, r: &Ray, photo: bool) {
         let m = &mut self.marched;
         let start = m.t.len();
@@ -542,18 +551,27 @@ impl<C> Worker<C> {
         let (positions, dirs, sigma, keep, chunk) =
             (&mut self.positions, &mut self.dirs, &mut self.sigma, &mut self.keep, &mut self.chunk);
         march_in_segments(occ, r, strides, len, &mut m.t, &mut m.delta, |t, delta, seg| {
-            for &t in &t[seg.clone()] {
+            // The photo tail's stop is known before any density: the first sample beyond the
+            // box. The samples from it on are neither evaluated nor kept.
+            let cut = photo.and_then(|exit| seg.clone().find(|&i| t[i] > exit)).unwrap_or(seg.end);
+            let evaluated = seg.start..cut;
+            for &t in &t[evaluated.clone()] {
                 positions.push(r.at(t));
                 dirs.push(r.dir);
             }
-            sigma.resize(seg.end, 0.0);
-            x.model.chunk_density(x.isa, x.params, seg.start, &positions[seg.clone()], &mut sigma[seg.clone()], chunk);
-            for i in seg {
+            sigma.resize(cut, 0.0);
+            if cut > seg.start {
+                x.model.chunk_density(
+                    x.isa,
+                    x.params,
+                    seg.start,
+                    &positions[evaluated.clone()],
+                    &mut sigma[evaluated.clone()],
+                    chunk,
+                );
+            }
+            for i in evaluated {
                 if acc.is_opaque() || tailed {
-                    break;
-                }
-                if photo.is_some_and(|exit| t[i] > exit) {
-                    photoed = true;
                     break;
                 }
                 acc.push(sigma[i], delta[i], 0.0, [0.0; 3]);
@@ -568,7 +586,11 @@ impl<C> Worker<C> {
                     return Flow::Coarsen(i);
                 }
             }
-            if acc.is_opaque() || tailed || photoed {
+            let stopped = acc.is_opaque() || tailed;
+            if cut < seg.end {
+                photoed = !stopped;
+                Flow::StopBefore(cut)
+            } else if stopped {
                 Flow::Stop
             } else {
                 Flow::Go
