@@ -20,8 +20,9 @@ fn main() -> Result<(), String> {
     let number =
         |a: Option<String>, default: usize| a.map_or(Ok(default), |v| v.parse().map_err(|_| usage.to_string()));
     let (views, reps) = (number(args.next(), 3)?, number(args.next(), 5)?);
-    let test = Dataset::load(&data, "test", &LoadOptions::default()).map_err(|e| e.to_string())?;
-    let background = LoadOptions::default().background;
+    let opts = LoadOptions::default();
+    let test = Dataset::load(&data, "test", &opts).map_err(|e| e.to_string())?;
+    let background = opts.background;
     let mut tail = DepthRenderer::load(&model)?.with_threads(2)?;
     let mut every = DepthRenderer::load(&model)?.with_threads(2)?.colour_tail(0.0)?;
     for cam in [&mut tail, &mut every] {

@@ -21,7 +21,7 @@
 use crate::field::residual::ResidualField;
 use crate::field::NerfField;
 use crate::io::{load_model, LoadedModel};
-use crate::render::view::Scene;
+use crate::render::view::{default_colour_tail, Scene};
 pub use crate::render::view::{COARSE_SPACING, COLOUR_TAIL};
 use crate::render::{pixel_ray, Aabb, FullOutputs, Intrinsics, OccupancyGrid, Pose, ViewRenderer};
 use crate::simd::Isa;
@@ -89,8 +89,8 @@ pub struct DepthRenderer {
     /// The last intrinsics whose lens passed [`crate::geometry::Distortion::check`]: a robot
     /// renders one camera frame after frame, so the check runs once per camera, not per frame.
     checked_lens: Option<Intrinsics>,
-    /// The colour tail of the full pass; `None`: [`COLOUR_TAIL`] with threshold depth, every
-    /// step with expected depth ([`DepthRenderer::colour_tail`]).
+    /// The colour tail of the full pass; `None`: [`default_colour_tail`] of the request's
+    /// depth method ([`DepthRenderer::colour_tail`]).
     colour_tail: Option<f32>,
     /// Colour behind the scene for [`Extras::rgb`]. Defaults to white.
     pub background: [f32; 3],
@@ -138,9 +138,9 @@ impl DepthRenderer {
     /// The colour tail of a frame that asks for colour or β ([`Extras`]): behind a ray's
     /// threshold hit, one sample for a run of up to `⌊reach / T⌋` occupied lattice steps
     /// ([`ViewRenderer::set_colour_tail`]). Threshold depth is the same bits with or without
-    /// it; colour moves by the quadrature error of the merged steps (on the dev models ~0.01
-    /// dB of PSNR at the default [`COLOUR_TAIL`], 0.43–0.62× the time of a colour frame;
-    /// docs/DECISIONS.md, "The colour tail"). 0: every step. By default [`COLOUR_TAIL`] with
+    /// it; colour moves by the quadrature error of the merged steps (on the dev models 0.003–
+    /// 0.015 dB of PSNR at the default [`COLOUR_TAIL`], 0.49–0.74× the time of a 200×200
+    /// colour frame; docs/DECISIONS.md, "The colour tail"). 0: every step. By default [`COLOUR_TAIL`] with
     /// threshold depth, and every step with expected depth, whose depth comes from the same
     /// pass; a value set here holds for both.
     pub fn colour_tail(mut self, reach: f32) -> Result<DepthRenderer, Error> {
@@ -282,11 +282,7 @@ impl DepthRenderer {
             _ => None,
         };
         let fraction = self.solid_fraction;
-        let tail = match (self.colour_tail, request.method) {
-            (Some(reach), _) => reach,
-            (None, DepthMethod::Expected) => 0.0,
-            (None, DepthMethod::Threshold(_)) => COLOUR_TAIL,
-        };
+        let tail = self.colour_tail.unwrap_or_else(|| default_colour_tail(request.method));
         self.nerf.set_colour_tail(tail);
         self.residual.set_colour_tail(tail);
         let DepthRenderer { model, nerf, residual, pool, solid, .. } = self;

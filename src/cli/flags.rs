@@ -572,8 +572,7 @@ impl Flags {
             }
             (Some(t), false) => Ok(t),
             (None, true) => Ok(0.0),
-            (None, false) if depth == DepthMethod::Expected => Ok(0.0),
-            (None, false) => Ok(crate::render::view::COLOUR_TAIL),
+            (None, false) => Ok(crate::render::view::default_colour_tail(depth)),
         }
     }
 

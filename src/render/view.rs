@@ -22,7 +22,7 @@
 //! whole ray (tested).
 
 use super::composite::{transmitted, RayAccumulator, EARLY_STOP_TRANSMITTANCE};
-use super::depth::DensityThreshold;
+use super::depth::{DensityThreshold, DepthMethod};
 use super::{pixel_ray, Intrinsics, OccupancyGrid, Pose, Ray, RaySpan};
 use crate::field::model::Model;
 use crate::field::residual::{ResidualField, ResidualModel};
@@ -63,6 +63,16 @@ pub const COLOUR_TAIL_MAX_STRIDE: u32 = 16;
 /// models their colour pass takes 0.43–0.62× the time at 0.4 and its PSNR moves by 0.008–0.013
 /// dB (docs/DECISIONS.md, "The colour tail").
 pub const COLOUR_TAIL: f32 = 0.4;
+
+/// The colour tail a colour pass takes when none is asked for: [`COLOUR_TAIL`] with threshold
+/// depth, 0 (every step) with expected depth, whose depth comes from that pass. `rnerf eval`,
+/// `rnerf render` and the onboard [`crate::onboard::DepthRenderer`] all default to it.
+pub fn default_colour_tail(depth: DepthMethod) -> f32 {
+    match depth {
+        DepthMethod::Threshold(_) => COLOUR_TAIL,
+        DepthMethod::Expected => 0.0,
+    }
+}
 
 /// A view's camera, pose and depth threshold.
 type View<'a> = (&'a Intrinsics, &'a Pose, DensityThreshold);
