@@ -7,7 +7,9 @@
 //! On the robot: load a model once, render depth for each camera pose into your own buffer
 //! ([`onboard::DepthRenderer`]; z or range in metres, NaN holes). Here the model is trained
 //! in a few steps on a synthesised workspace; a robot loads its file with
-//! [`onboard::DepthRenderer::load`].
+//! [`onboard::DepthRenderer::load`]. When objects appear, the scene phase runs on board from the
+//! images in memory ([`train::scene::train_scene`]: the background's prior, the start at the
+//! background, the residual's training) and hands its model to [`onboard::DepthRenderer::new`].
 //!
 //! ```
 //! use residual_nerf::data::workspace;

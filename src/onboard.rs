@@ -260,12 +260,7 @@ impl DepthRenderer {
         if let Some(beta) = &extras.beta {
             sized(beta.len(), "beta")?;
         }
-        if !(k.fx.is_finite() && k.fy.is_finite() && k.fx > 0.0 && k.fy > 0.0 && k.cx.is_finite() && k.cy.is_finite()) {
-            return Err(Error::bad_input(format!(
-                "intrinsics fx={} fy={} cx={} cy={} are not a camera",
-                k.fx, k.fy, k.cx, k.cy
-            )));
-        }
+        k.check_pinhole().map_err(Error::bad_input)?;
         if !k.distortion.is_none() && self.checked_lens != Some(*k) {
             k.distortion
                 .check(k.width, k.height, k.fx, k.fy, k.cx, k.cy)

@@ -201,3 +201,61 @@ fn a_registered_run_resumes_at_its_registered_poses() {
     assert_eq!(tensors(&straight), tensors(&out), "the resumed model differs from the uninterrupted one");
     assert_eq!(run_metadata(&straight), run_metadata(&out));
 }
+
+/// The scene phase through the library (`train::scene::train_scene`: what a robot calls with
+/// its images in memory) is `rnerf train --data SCENE --background BG --background-data
+/// BACKGROUND`: the same prior, start and training, so the same model tensor for tensor.
+#[test]
+fn the_librarys_scene_phase_trains_the_command_lines_model() {
+    use residual_nerf::io::{save_nerf, save_residual};
+    use residual_nerf::train::prior::PriorConfig;
+    use residual_nerf::train::scene::train_scene;
+    use residual_nerf::train::trainer::train_nerf;
+    let dir = scratch("scene_phase");
+    let isa = Isa::detect();
+    let (bg_dir, scene_dir) = (dir.join("background"), dir.join("scene"));
+    let bg = workspace::workspace(32, 16, 0.0, false);
+    let demo = residual_nerf::app::demo_config(150, 0);
+    let background = train_nerf(isa, &bg.views, demo.field.clone(), &demo.train, 0, |_| {}).unwrap();
+    let bg_model = dir.join("bg.safetensors");
+    save_nerf(&bg_model, &background, &[]).unwrap();
+    bg.write_split(&bg_dir, "train").unwrap();
+    workspace::workspace(32, 16, 0.0, true).write_split(&scene_dir, "train").unwrap();
+    let out = dir.join("cli.safetensors");
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let args = [
+        "train",
+        "--data",
+        &s(&scene_dir),
+        "--background",
+        &s(&bg_model),
+        "--background-data",
+        &s(&bg_dir),
+        "--steps",
+        "40",
+        "--seed",
+        "3",
+        "--out",
+        &s(&out),
+    ];
+    let o = rnerf(&args).output().unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    // The images as `rnerf train` reads them, and its settings for this capture.
+    let opts = LoadOptions { ground_truth: false, ..Default::default() };
+    let (bg_data, scene) =
+        (Dataset::load(&bg_dir, "train", &opts).unwrap(), Dataset::load(&scene_dir, "train", &opts).unwrap());
+    let mut cfg = TrainConfig::with_steps(40);
+    cfg.seed = 3;
+    cfg.random_background = !scene.had_alpha;
+    cfg.rays_per_step = cfg.rays_for_views(&scene.views);
+    let mut steps = 0;
+    let lib =
+        train_scene(isa, &background, &bg_data.views, &scene.views, &cfg, &PriorConfig::default(), |_| steps += 1)
+            .unwrap();
+    assert_eq!(steps, 40);
+    assert_eq!(lib.prior.matched_views, 16, "every scene view has a background image at its pose");
+    assert!(lib.model.field.region().is_some_and(|r| r.count() > 0), "no change region");
+    let lib_file = dir.join("lib.safetensors");
+    save_residual(&lib_file, &lib.model, &[]).unwrap();
+    assert_eq!(tensors(&lib_file), tensors(&out));
+}

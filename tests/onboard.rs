@@ -458,3 +458,36 @@ fn the_coarse_start_spaces_its_first_pass_by_angle_not_by_pixels() {
         }
     }
 }
+
+/// The scene phase through the library ([`train_scene`]) refuses views it cannot train on with
+/// a bad input naming the view and the field, before anything runs (no panic).
+#[test]
+fn the_scene_phase_refuses_unusable_views_with_one_line_naming_the_view() {
+    use residual_nerf::train::prior::PriorConfig;
+    use residual_nerf::train::scene::{train_scene, SceneError};
+    use residual_nerf::train::trainer::TrainConfig;
+    let background = trained();
+    let views = synth::tabletop(8, 3, 0.3).views;
+    let cfg = TrainConfig::with_steps(1);
+    let run = |bg_views: &[residual_nerf::data::View], views: &[residual_nerf::data::View], needle: &str| {
+        let e = train_scene(Isa::detect(), &background, bg_views, views, &cfg, &PriorConfig::default(), |_| {})
+            .err()
+            .expect("refused");
+        let SceneError::Input(e) = e else { panic!("not an input error: {e}") };
+        assert_eq!(e.kind(), ErrorKind::BadInput, "{e}");
+        assert!(e.message().contains(needle) && !e.message().contains('\n'), "'{e}' should name {needle}");
+    };
+    run(&[], &[], "no scene views");
+    let mut short = views.clone();
+    short[2].rgb.pop();
+    run(&[], &short, "scene view 2: rgb holds 63 colours, the camera has 8x8 = 64");
+    let mut nan = views.clone();
+    nan[1].rgb[5][1] = f32::NAN;
+    run(&[], &nan, "scene view 1: rgb holds a non-finite colour at pixel 5");
+    let mut camera = views.clone();
+    camera[0].intrinsics.fy = -1.0;
+    run(&[], &camera, "scene view 0: intrinsics fx=");
+    let mut pose = views.clone();
+    pose[2].pose.rotation.x_axis.y = f32::INFINITY;
+    run(&pose, &views, "background view 2: pose holds a non-finite value");
+}

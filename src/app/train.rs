@@ -220,10 +220,8 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
                 }
             }
             let config = ResidualConfig { residual: field, kind, mixnet };
-            let start = residual_start(isa, &bg, config, hints, prior.as_ref(), &cfg, &pcfg);
-            cfg.focus = start.focus;
-            cfg.behind = start.behind;
-            cfg.beta = start.beta;
+            let mut start = residual_start(isa, &bg, config, hints, prior.as_ref(), &cfg, &pcfg);
+            let cfg = start.train_config(&cfg);
             if let Some(l) = start.lift {
                 eprintln!("rnerf train: {l}");
             }

@@ -198,11 +198,8 @@ pub fn run_scene(
                     let mixnet = if shared { MixnetEncoding::Shared } else { MixnetEncoding::Own(cfg.mixnet_grid) };
                     let config = ResidualConfig { residual: cfg.field.clone(), kind, mixnet };
                     let p = prior.as_ref().map(|p| &p.0);
-                    let start = residual_start(isa, background, config, hints, p, &cfg.train, &cfg.prior);
-                    let mut mcfg = cfg.clone();
-                    mcfg.train.focus = start.focus;
-                    mcfg.train.behind = start.behind;
-                    mcfg.train.beta = start.beta;
+                    let mut start = residual_start(isa, background, config, hints, p, &cfg.train, &cfg.prior);
+                    let mcfg = CompareConfig { train: start.train_config(&cfg.train), ..cfg.clone() };
                     if let Some(l) = start.lift {
                         eprintln!("{name}: {l}");
                     }

@@ -36,6 +36,17 @@ pub struct Intrinsics {
 }
 
 impl Intrinsics {
+    /// `Err` with a one-line message when the pinhole part is not a camera: focal lengths not
+    /// finite and positive, or a principal point not finite (the lens is checked by
+    /// [`Distortion::check`]).
+    pub fn check_pinhole(&self) -> Result<(), String> {
+        let Intrinsics { fx, fy, cx, cy, .. } = *self;
+        match fx.is_finite() && fy.is_finite() && fx > 0.0 && fy > 0.0 && cx.is_finite() && cy.is_finite() {
+            true => Ok(()),
+            false => Err(format!("intrinsics fx={fx} fy={fy} cx={cx} cy={cy} are not a camera")),
+        }
+    }
+
     /// A pinhole camera (no distortion).
     pub fn pinhole(width: u32, height: u32, fx: f32, fy: f32, cx: f32, cy: f32) -> Intrinsics {
         Intrinsics { width, height, fx, fy, cx, cy, distortion: Distortion::None }

@@ -11,6 +11,7 @@ pub mod pixel_filter;
 mod pool;
 pub mod prior;
 pub mod register;
+pub mod scene;
 mod step;
 pub mod trainer;
 

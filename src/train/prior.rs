@@ -760,6 +760,15 @@ pub struct ResidualStart {
     pub behind: Option<std::sync::Arc<BackgroundColours>>,
 }
 
+impl ResidualStart {
+    /// `cfg` with this start's focus pixels, background colours behind the region and β
+    /// regularisers moved into it: the training config a [`crate::train::trainer::Trainer`]
+    /// from this start reads.
+    pub fn train_config(&mut self, cfg: &TrainConfig) -> TrainConfig {
+        TrainConfig { focus: self.focus.take(), behind: self.behind.take(), beta: self.beta, ..cfg.clone() }
+    }
+}
+
 /// The start of a residual model over `background` with `config` and `hints`, the scene's
 /// `prior` (needed by every hint but none), seeded by `cfg.seed`. With `warm_start` the
 /// residual takes the background's architecture (`config.residual` is replaced), so the mixed

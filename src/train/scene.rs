@@ -1,0 +1,145 @@
+//! The scene phase in one call: what a robot runs on board when objects appear in its
+//! workspace. From the frozen background model, the background's images (at the poses the
+//! scene is photographed from, where there are any) and the scene's posed images, all in
+//! memory, to a trained residual model the onboard renderer takes
+//! ([`crate::onboard::DepthRenderer::new`]) or [`crate::io::save_residual`] writes.
+//!
+//! It is the default background-aware Residual-NeRF, the same steps as `rnerf train --data SCENE
+//! --background BG --background-data BACKGROUND` with the same settings, and the same bits
+//! (test `the_librarys_scene_phase_trains_the_command_lines_model` in `tests/cli_train.rs`):
+//! 1. the background's prior ([`scene_prior`]): change maps, the change region, the focus and
+//!    reach pixels, each scene image's pose registered and exposure corrected against the
+//!    background where that applies;
+//! 2. the start at the background ([`residual_start`] with [`Prior::ALL`]): the residual a copy
+//!    of the background, the Mixnet's β 0 outside the region, the background's occupancy grid;
+//! 3. the residual's training ([`Trainer`]) on the corrected images, whose last step settles the
+//!    region's occupancy for the onboard renderer.
+//!
+//! Views that are not usable (colours not one finite triple per pixel, intrinsics that are not
+//! a camera, a non-finite pose) are refused with a one-line error naming the view and the field
+//! ([`SceneError::Input`]) before anything runs.
+//!
+//! The caller owns the settings: `cfg` as for `rnerf train` (its steps, rays per step — the
+//! command line takes [`TrainConfig::rays_for_views`] of the scene's views — seed and
+//! background colour for images without alpha: [`TrainConfig::random_background`]), `pcfg`
+//! the prior's ([`PriorConfig::default`] is the command line's).
+
+use crate::data::View;
+use crate::error::Error;
+use crate::field::mix::{DensityMix, MixKind};
+use crate::field::mixnet::MixnetEncoding;
+use crate::field::residual::{ResidualConfig, ResidualModel};
+use crate::field::Nerf;
+use crate::render::DensityThreshold;
+use crate::simd::Isa;
+use crate::train::prior::{residual_start, scene_prior, Prior, PriorConfig, ScenePrior};
+use crate::train::trainer::{StepStats, TrainConfig, TrainError, Trainer};
+
+/// A trained scene: the model and what the background's prior found.
+pub struct SceneModel {
+    /// Background, residual, Mixnet and the mixed field's occupancy grid.
+    pub model: ResidualModel,
+    /// The change maps, the region and the pixels the training drew from, the registered poses
+    /// and the exposure corrections ([`ScenePrior::changed_share`], [`ScenePrior::region`], …).
+    pub prior: ScenePrior,
+}
+
+/// Why [`train_scene`] stopped.
+#[derive(Clone, Debug, PartialEq)]
+pub enum SceneError {
+    /// The views are not usable ([`crate::error::ErrorKind::BadInput`]; the message names the
+    /// view and the field): no scene view, colours not one finite triple per pixel, intrinsics
+    /// that are not a camera, a non-finite pose. Nothing was trained.
+    Input(Error),
+    /// The training stopped ([`TrainError`]): non-finite steps in a row, or rays that reach no
+    /// occupied cell.
+    Train(TrainError),
+}
+
+impl std::fmt::Display for SceneError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            SceneError::Input(e) => write!(f, "{e}"),
+            SceneError::Train(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl std::error::Error for SceneError {}
+
+impl From<TrainError> for SceneError {
+    fn from(e: TrainError) -> SceneError {
+        SceneError::Train(e)
+    }
+}
+
+/// `Err` naming the first view of `views` (called `what`) that is not usable: colours not one
+/// finite triple per pixel, intrinsics that are not a camera, a non-finite pose.
+fn check_views(what: &str, views: &[View]) -> Result<(), Error> {
+    for (i, v) in views.iter().enumerate() {
+        let bad = |m: String| Error::bad_input(format!("{what} view {i}: {m}"));
+        let k = &v.intrinsics;
+        let n = k.width as usize * k.height as usize;
+        if n == 0 || v.rgb.len() != n {
+            return Err(bad(format!(
+                "rgb holds {} colours, the camera has {}x{} = {n}",
+                v.rgb.len(),
+                k.width,
+                k.height
+            )));
+        }
+        if let Some(p) = v.rgb.iter().position(|c| !c.iter().all(|x| x.is_finite())) {
+            return Err(bad(format!("rgb holds a non-finite colour at pixel {p}")));
+        }
+        k.check_pinhole().map_err(bad)?;
+        if !k.distortion.is_none() {
+            k.distortion
+                .check(k.width, k.height, k.fx, k.fy, k.cx, k.cy)
+                .map_err(|m| bad(format!("intrinsics: {m}")))?;
+        }
+        if !(v.pose.translation.is_finite() && v.pose.rotation.is_finite()) {
+            return Err(bad("pose holds a non-finite value".to_string()));
+        }
+    }
+    Ok(())
+}
+
+/// Trains the default residual model of the scene `views` over the frozen `background`, given
+/// the background's own images `background_views` (the views among them at a scene view's pose
+/// are that view's background colours; scene views at other poses are compared with the
+/// background rendered there; empty: every view is). `log` sees every step.
+pub fn train_scene(
+    isa: Isa,
+    background: &Nerf,
+    background_views: &[View],
+    views: &[View],
+    cfg: &TrainConfig,
+    pcfg: &PriorConfig,
+    mut log: impl FnMut(StepStats),
+) -> Result<SceneModel, SceneError> {
+    if views.is_empty() {
+        return Err(SceneError::Input(Error::bad_input("no scene views")));
+    }
+    check_views("scene", views).and_then(|_| check_views("background", background_views)).map_err(SceneError::Input)?;
+    let prior = scene_prior(isa, background, background_views, views, cfg.background, DensityThreshold::DEFAULT, pcfg);
+    let config = ResidualConfig {
+        residual: background.field.config().clone(),
+        kind: MixKind::Mixnet(DensityMix::Raw),
+        mixnet: MixnetEncoding::default(),
+    };
+    let mut start = residual_start(isa, background, config, Prior::ALL, Some(&prior), cfg, pcfg);
+    let cfg = start.train_config(cfg);
+    // In the background's frame and appearance when the prior registered a pose or corrected
+    // the exposure.
+    let corrected = prior.corrects_views().then(|| prior.corrected_views(views));
+    let views = corrected.as_deref().unwrap_or(views);
+    let mut trainer = Trainer::starting_at(isa, &start.field, views, &cfg, start.params, start.occupancy);
+    while !trainer.is_done() {
+        log(trainer.step()?);
+    }
+    let state = trainer.into_state();
+    Ok(SceneModel {
+        model: ResidualModel { field: start.field, params: state.params, occupancy: state.occupancy },
+        prior,
+    })
+}
