@@ -8,6 +8,7 @@
 //! (`RNERF_CPU_LEVEL=avx2` for the robots' level; run it alone, in its own autogroup.)
 
 use residual_nerf::data::{Dataset, LoadOptions};
+use residual_nerf::eval;
 use residual_nerf::onboard::{DepthKind, DepthMethod, DepthRenderer, DepthRequest, Extras, COLOUR_TAIL};
 use std::path::PathBuf;
 use std::time::Instant;
@@ -45,11 +46,7 @@ fn main() -> Result<(), String> {
                 ms.push(t.elapsed().as_secs_f64() * 1e3);
             }
         }
-        let psnr = |rgb: &[[f32; 3]]| {
-            let se: f64 =
-                rgb.iter().zip(&v.rgb).flat_map(|(a, b)| (0..3).map(move |c| ((a[c] - b[c]) as f64).powi(2))).sum();
-            -10.0 * (se / (3 * n) as f64).log10()
-        };
+        let psnr = |rgb: &[[f32; 3]]| eval::psnr(eval::mse(rgb, &v.rgb));
         let same_depth = frames[0].0.iter().zip(&frames[1].0).all(|(a, b)| a.to_bits() == b.to_bits());
         let median = |ms: &mut Vec<f64>| {
             ms.sort_by(f64::total_cmp);

@@ -86,9 +86,10 @@ pub struct DepthRenderer {
     /// fraction and the threshold's σ (built once per pair).
     solid: Option<((f32, f32), OccupancyGrid)>,
     solid_fraction: f32,
-    /// The last intrinsics whose lens passed [`crate::geometry::Distortion::check`]: a robot
-    /// renders one camera frame after frame, so the check runs once per camera, not per frame.
-    checked_lens: Option<Intrinsics>,
+    /// The last intrinsics that passed [`Intrinsics::check`] (the lens's check is the costly
+    /// part): a robot renders one camera frame after frame, so the check runs once per camera,
+    /// not per frame.
+    checked_camera: Option<Intrinsics>,
     /// The colour tail of the full pass; `None`: [`default_colour_tail`] of the request's
     /// depth method ([`DepthRenderer::colour_tail`]).
     colour_tail: Option<f32>,
@@ -113,7 +114,7 @@ impl DepthRenderer {
             isa: Isa::detect(),
             solid: None,
             solid_fraction: SOLID_FRACTION,
-            checked_lens: None,
+            checked_camera: None,
             colour_tail: None,
             background: [1.0; 3],
         }
@@ -260,16 +261,11 @@ impl DepthRenderer {
         if let Some(beta) = &extras.beta {
             sized(beta.len(), "beta")?;
         }
-        k.check_pinhole().map_err(Error::bad_input)?;
-        if !k.distortion.is_none() && self.checked_lens != Some(*k) {
-            k.distortion
-                .check(k.width, k.height, k.fx, k.fy, k.cx, k.cy)
-                .map_err(|m| Error::bad_input(format!("intrinsics: {m}")))?;
-            self.checked_lens = Some(*k);
+        if self.checked_camera != Some(*k) {
+            k.check().map_err(Error::bad_input)?;
+            self.checked_camera = Some(*k);
         }
-        if !(pose.translation.is_finite() && pose.rotation.is_finite()) {
-            return Err(Error::bad_input("pose holds a non-finite value"));
-        }
+        pose.check().map_err(Error::bad_input)?;
         let (isa, background) = (self.isa, self.background);
         let depth_only = extras.rgb.is_none() && extras.beta.is_none();
         let fast = match request.method {

@@ -96,12 +96,11 @@ fn intrinsics(model: &str, width: u64, height: u64, p: &[f64]) -> Result<Intrins
     if !(1..=side).contains(&width) || !(1..=side).contains(&height) {
         return Err(format!("image size {width}x{height} is outside 1..={side}"));
     }
-    if !(fx.is_finite() && fy.is_finite() && fx > 0.0 && fy > 0.0 && cx.is_finite() && cy.is_finite()) {
-        return Err(format!("fx={fx} fy={fy} cx={cx} cy={cy} are not a camera"));
-    }
     let (width, height) = (width as u32, height as u32);
+    let k = Intrinsics { width, height, fx, fy, cx, cy, distortion };
+    k.check_pinhole()?;
     distortion.check(width, height, fx, fy, cx, cy)?;
-    Ok(Intrinsics { width, height, fx, fy, cx, cy, distortion })
+    Ok(k)
 }
 
 /// Camera-to-world (OpenGL axes) from COLMAP's world-to-camera quaternion `(w, x, y, z)` and

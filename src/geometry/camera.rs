@@ -47,6 +47,19 @@ impl Intrinsics {
         }
     }
 
+    /// [`Intrinsics::check_pinhole`], then the lens ([`Distortion::check`], its message after
+    /// `intrinsics: `): the camera a caller hands the onboard renderer or the scene phase.
+    pub fn check(&self) -> Result<(), String> {
+        self.check_pinhole()?;
+        match self.distortion.is_none() {
+            true => Ok(()),
+            false => self
+                .distortion
+                .check(self.width, self.height, self.fx, self.fy, self.cx, self.cy)
+                .map_err(|m| format!("intrinsics: {m}")),
+        }
+    }
+
     /// A pinhole camera (no distortion).
     pub fn pinhole(width: u32, height: u32, fx: f32, fy: f32, cx: f32, cy: f32) -> Intrinsics {
         Intrinsics { width, height, fx, fy, cx, cy, distortion: Distortion::None }
@@ -87,6 +100,14 @@ pub struct Pose {
 }
 
 impl Pose {
+    /// `Err` with a one-line message when the pose holds a non-finite value.
+    pub fn check(&self) -> Result<(), String> {
+        match self.translation.is_finite() && self.rotation.is_finite() {
+            true => Ok(()),
+            false => Err("pose holds a non-finite value".to_string()),
+        }
+    }
+
     /// A camera at `eye` looking at `target`, world +Z up (the image's up is as close to +Z
     /// as the viewing direction allows; `eye - target` must not be vertical).
     pub fn look_at(eye: Vec3, target: Vec3) -> Pose {

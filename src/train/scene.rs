@@ -74,7 +74,8 @@ impl From<TrainError> for SceneError {
 }
 
 /// `Err` naming the first view of `views` (called `what`) that is not usable: colours not one
-/// finite triple per pixel, intrinsics that are not a camera, a non-finite pose.
+/// finite triple per pixel, intrinsics that are not a camera ([`crate::render::Intrinsics::check`]),
+/// a non-finite pose ([`crate::render::Pose::check`]).
 fn check_views(what: &str, views: &[View]) -> Result<(), Error> {
     for (i, v) in views.iter().enumerate() {
         let bad = |m: String| Error::bad_input(format!("{what} view {i}: {m}"));
@@ -91,15 +92,8 @@ fn check_views(what: &str, views: &[View]) -> Result<(), Error> {
         if let Some(p) = v.rgb.iter().position(|c| !c.iter().all(|x| x.is_finite())) {
             return Err(bad(format!("rgb holds a non-finite colour at pixel {p}")));
         }
-        k.check_pinhole().map_err(bad)?;
-        if !k.distortion.is_none() {
-            k.distortion
-                .check(k.width, k.height, k.fx, k.fy, k.cx, k.cy)
-                .map_err(|m| bad(format!("intrinsics: {m}")))?;
-        }
-        if !(v.pose.translation.is_finite() && v.pose.rotation.is_finite()) {
-            return Err(bad("pose holds a non-finite value".to_string()));
-        }
+        k.check().map_err(bad)?;
+        v.pose.check().map_err(bad)?;
     }
     Ok(())
 }
