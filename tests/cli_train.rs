@@ -209,7 +209,7 @@ fn a_registered_run_resumes_at_its_registered_poses() {
 fn the_librarys_scene_phase_trains_the_command_lines_model() {
     use residual_nerf::io::{save_nerf, save_residual};
     use residual_nerf::train::prior::PriorConfig;
-    use residual_nerf::train::scene::train_scene;
+    use residual_nerf::train::scene::{train_scene, SceneBackground};
     use residual_nerf::train::trainer::train_nerf;
     let dir = scratch("scene_phase");
     let isa = Isa::detect();
@@ -249,9 +249,8 @@ fn the_librarys_scene_phase_trains_the_command_lines_model() {
     cfg.random_background = !scene.had_alpha;
     cfg.rays_per_step = cfg.rays_for_views(&scene.views);
     let mut steps = 0;
-    let lib =
-        train_scene(isa, &background, &bg_data.views, &scene.views, &cfg, &PriorConfig::default(), |_| steps += 1)
-            .unwrap();
+    let mut bg = SceneBackground::new(&background, &bg_data.views).unwrap();
+    let lib = train_scene(isa, &mut bg, &scene.views, &cfg, &PriorConfig::default(), |_| steps += 1).unwrap();
     assert_eq!(steps, 40);
     assert_eq!(lib.prior.matched_views, 16, "every scene view has a background image at its pose");
     assert!(lib.model.field.region().is_some_and(|r| r.count() > 0), "no change region");

@@ -18,6 +18,7 @@ use residual_nerf::geometry::ChangeRegion;
 use residual_nerf::render::{Aabb, DensityThreshold};
 use residual_nerf::rng::Rng;
 use residual_nerf::train::prior::{change_map, changed_pixels, dilate, scene_prior, PriorConfig};
+use residual_nerf::train::scene::SceneBackground;
 use residual_nerf::train::trainer::train_nerf;
 use residual_nerf::GradientMode;
 
@@ -289,6 +290,24 @@ fn the_voted_region_holds_the_glass_from_the_same_and_from_other_poses() {
             let spared: Vec<usize> = q.spared.iter().filter(|x| x.0 == v as u32).map(|x| x.1 as usize).collect();
             let expected: Vec<usize> = (0..w * w).filter(|&p| raw[p]).collect();
             assert_eq!(spared, expected, "view {v}: margin 0 spares exactly the changed pixels");
+            // Kept between scene phases, the background's depth at its images' poses is
+            // rendered once and read back after: the same priors as rendering it each time.
+            let mut kept = SceneBackground::new(&background, bgv).expect("usable views");
+            assert_eq!(kept.depths_held(), 0);
+            for (cfg, fresh) in [(&cfg, &p), (&tight, &q), (&cfg, &p)] {
+                let held = kept.prior(isa, &scene.views, workspace::SKY, m, cfg);
+                assert_eq!(kept.depths_held(), 24, "one depth per background image");
+                let same = held.maps == fresh.maps && held.focus == fresh.focus && held.spared == fresh.spared;
+                assert!(same && held.reach == fresh.reach, "the held depths give another prior");
+                assert!(held.region.cells() == fresh.region.cells(), "the held depths give another region");
+            }
+            // Another threshold's depths are other depths: rendered again, the same as fresh.
+            let m20 = DensityThreshold::Sigma(20.0);
+            let held = kept.prior(isa, &scene.views, workspace::SKY, m20, &cfg);
+            let fresh = scene_prior(isa, &background, bgv, &scene.views, workspace::SKY, m20, &cfg);
+            let same = held.region.cells() == fresh.region.cells() && held.reach == fresh.reach;
+            assert!(same, "σ ≥ 20's prior from the held depths is another prior");
+            assert!(fresh.reach != p.reach, "σ ≥ 20 should move the background's surface and so the reach pixels");
         }
         assert!(p.region.contains(centre), "phase {phase}: the glass centre is outside the region");
         let volume = p.region.volume() as f32;

@@ -406,44 +406,75 @@ fn same_pose(a: &View, b: &View) -> bool {
     same_k && dr <= SAME_POSE && (a.pose.translation - b.pose.translation).abs().max_element() <= SAME_POSE
 }
 
+/// The background's threshold depth at its own images' poses, each rendered the first time a
+/// scene view is matched to that image and held after: a robot trains its background once and
+/// runs a scene phase each time objects appear, and the depth of the background where its own
+/// images were taken is the same every time ([`crate::train::scene::SceneBackground`] keeps
+/// one). For one background model and one list of its views; a threshold or solid fraction
+/// other than the held depths' starts afresh.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct BackgroundDepths {
+    /// The threshold and the solid fraction the held depths were rendered with.
+    key: Option<(DensityThreshold, f32)>,
+    /// Per background view, its threshold z-depth once rendered (NaN at holes).
+    depth: Vec<Option<Vec<f32>>>,
+}
+
+impl BackgroundDepths {
+    /// How many background views' depths are held.
+    pub(crate) fn held(&self) -> usize {
+        self.depth.iter().flatten().count()
+    }
+}
+
 /// The background at each of `views`' poses: its colours — the background image at the same
-/// pose (`matches[i]`), else `background` rendered there (over `sky`) — and its threshold
-/// z-depth at `m` (rendered; NaN at holes), from one render per view (`rendered[i]` when given:
-/// view `i` rendered at its pose already). A depth-only render marches the grid kept to the
-/// cells whose value reached `solid_fraction · m · δ` ([`PriorConfig::depth_solid_fraction`]).
+/// pose (`bg_views[matched[i]]`), else `background` rendered there (over `sky`) — and its
+/// threshold z-depth at `m` (NaN at holes). A matched view's depth is the background's at its
+/// image's pose, taken from `held` or rendered depth-only on the grid kept to the cells whose
+/// value reached `solid_fraction · m · δ` ([`PriorConfig::depth_solid_fraction`]) and held; an
+/// unmatched view's comes from its colour render (`rendered[i]` when given: view `i` rendered
+/// at its pose already).
 #[allow(clippy::too_many_arguments)]
 fn background_at(
     isa: Isa,
     background: &Nerf,
+    bg_views: &[View],
+    held: &mut BackgroundDepths,
     views: &[View],
-    matches: &[Option<&View>],
+    matched: &[Option<usize>],
     rendered: Vec<Option<RenderedView>>,
     sky: [f32; 3],
     m: DensityThreshold,
     solid_fraction: f32,
 ) -> Vec<(Vec<[f32; 3]>, Vec<f32>)> {
+    let key = Some((m, solid_fraction));
+    if held.key != key || held.depth.len() != bg_views.len() {
+        *held = BackgroundDepths { key, depth: vec![None; bg_views.len()] };
+    }
     let mut renderer = ViewRenderer::new();
     renderer.set_early_stop(PRIOR_EARLY_STOP, PRIOR_STOP_FILL);
     let scene = Scene::from(background);
-    // The thinned grid only when some view is rendered for its depth alone.
+    // The thinned grid only when some matched view's depth is still to render.
     let grid = &background.occupancy;
-    let depth_only = rendered.iter().zip(matches).any(|(done, matched)| done.is_none() && matched.is_some());
+    let depth_only = matched.iter().flatten().any(|&b| held.depth[b].is_none());
     let solid = depth_only.then(|| grid.keep_solid(solid_fraction, m.min_sigma()));
     let depth_scene = scene.with_grid(solid.as_ref());
-    let each = views.iter().zip(matches).zip(rendered);
-    each.map(|((v, matched), done)| {
-        let k = &v.intrinsics;
-        match (done, matched) {
-            (Some(r), _) => (r.rgb, r.threshold_z),
-            (None, Some(b)) => {
+    let each = views.iter().zip(matched).zip(rendered);
+    each.map(|((v, matched), done)| match (done, *matched) {
+        (Some(r), _) => (r.rgb, r.threshold_z),
+        (None, Some(b)) => {
+            let image = &bg_views[b];
+            let z = held.depth[b].get_or_insert_with(|| {
+                let k = &image.intrinsics;
                 let mut z = vec![0.0; (k.width * k.height) as usize];
-                renderer.depth(isa, &depth_scene, k, &v.pose, m, &mut z);
-                (b.rgb.clone(), z)
-            }
-            (None, None) => {
-                let r = renderer.render(isa, &scene, k, &v.pose, sky, m);
-                (r.rgb, r.threshold_z)
-            }
+                renderer.depth(isa, &depth_scene, k, &image.pose, m, &mut z);
+                z
+            });
+            (image.rgb.clone(), z.clone())
+        }
+        (None, None) => {
+            let r = renderer.render(isa, &scene, &v.intrinsics, &v.pose, sky, m);
+            (r.rgb, r.threshold_z)
         }
     })
     .collect()
@@ -644,9 +675,27 @@ pub fn scene_prior(
     m: DensityThreshold,
     cfg: &PriorConfig,
 ) -> ScenePrior {
+    let mut fresh = BackgroundDepths::default();
+    scene_prior_held(isa, background, bg_views, &mut fresh, views, sky, m, cfg)
+}
+
+/// [`scene_prior`] with the background's depths at its own images' poses taken from `held`
+/// where it has them, and those it renders kept there (the same bits either way).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn scene_prior_held(
+    isa: Isa,
+    background: &Nerf,
+    bg_views: &[View],
+    held: &mut BackgroundDepths,
+    views: &[View],
+    sky: [f32; 3],
+    m: DensityThreshold,
+    cfg: &PriorConfig,
+) -> ScenePrior {
     // A view at a background image's pose is compared with that image; the rest are
     // registered (when on) and compared with the background rendered at their pose.
-    let matches: Vec<Option<&View>> = views.iter().map(|v| bg_views.iter().find(|b| same_pose(b, v))).collect();
+    let matched: Vec<Option<usize>> = views.iter().map(|v| bg_views.iter().position(|b| same_pose(b, v))).collect();
+    let matches: Vec<Option<&View>> = matched.iter().map(|b| b.map(|b| &bg_views[b])).collect();
     let (registrations, rendered) = match cfg.register {
         true => register_views(isa, background, views, &matches, sky, m),
         false => (vec![None; views.len()], (0..views.len()).map(|_| None).collect()),
@@ -660,7 +709,8 @@ pub fn scene_prior(
         }
         false => views,
     };
-    let bg = background_at(isa, background, views, &matches, rendered, sky, m, cfg.depth_solid_fraction);
+    let bg =
+        background_at(isa, background, bg_views, held, views, &matched, rendered, sky, m, cfg.depth_solid_fraction);
     let matched_views = matches.iter().flatten().count();
     let corrections: Vec<ColourCorrection> = views
         .par_iter()

@@ -4,10 +4,16 @@
 //! memory, to a trained residual model the onboard renderer takes
 //! ([`crate::onboard::DepthRenderer::new`]) or [`crate::io::save_residual`] writes.
 //!
+//! The background side is a [`SceneBackground`], made once when the background is trained and
+//! passed to every scene phase: it holds the background's depth at its images' poses, which
+//! the prior needs and which is the same for every scene, so only the first scene phase renders
+//! it (on the dev captures the prior then takes about a third of its time; docs/DECISIONS.md,
+//! "The background's depths held between scene phases").
+//!
 //! It is the default background-aware Residual-NeRF, the same steps as `rnerf train --data SCENE
 //! --background BG --background-data BACKGROUND` with the same settings, and the same bits
 //! (test `the_librarys_scene_phase_trains_the_command_lines_model` in `tests/cli_train.rs`):
-//! 1. the background's prior ([`scene_prior`]): change maps, the change region, the focus and
+//! 1. the background's prior ([`crate::train::prior::scene_prior`]'s bits): change maps, the change region, the focus and
 //!    reach pixels, each scene image's pose registered and exposure corrected against the
 //!    background where that applies;
 //! 2. the start at the background ([`residual_start`] with [`Prior::ALL`]): the residual a copy
@@ -32,7 +38,7 @@ use crate::field::residual::{ResidualConfig, ResidualModel};
 use crate::field::Nerf;
 use crate::render::DensityThreshold;
 use crate::simd::Isa;
-use crate::train::prior::{residual_start, scene_prior, Prior, PriorConfig, ScenePrior};
+use crate::train::prior::{residual_start, scene_prior_held, BackgroundDepths, Prior, PriorConfig, ScenePrior};
 use crate::train::trainer::{StepStats, TrainConfig, TrainError, Trainer};
 
 /// A trained scene: the model and what the background's prior found.
@@ -42,6 +48,8 @@ pub struct SceneModel {
     /// The change maps, the region and the pixels the training drew from, the registered poses
     /// and the exposure corrections ([`ScenePrior::changed_share`], [`ScenePrior::region`], …).
     pub prior: ScenePrior,
+    /// Wall seconds of the prior (the training's are in its last [`StepStats::seconds`]).
+    pub prior_seconds: f64,
 }
 
 /// Why [`train_scene`] stopped.
@@ -98,14 +106,62 @@ fn check_views(what: &str, views: &[View]) -> Result<(), Error> {
     Ok(())
 }
 
-/// Trains the default residual model of the scene `views` over the frozen `background`, given
-/// the background's own images `background_views` (the views among them at a scene view's pose
-/// are that view's background colours; scene views at other poses are compared with the
-/// background rendered there; empty: every view is). `log` sees every step.
+/// The background side of the scene phase, kept from one scene phase to the next: the frozen
+/// background model, its own images, and the background's depth at those images' poses, each
+/// rendered the first time a scene view is matched to it and held after (the same bits as
+/// rendering it again). A robot makes one when its background is trained and passes it to
+/// every [`train_scene`]: a scene phase then spends nothing on the background's depth at the
+/// poses it has already seen.
+pub struct SceneBackground<'a> {
+    model: &'a Nerf,
+    views: &'a [View],
+    depths: BackgroundDepths,
+}
+
+impl<'a> SceneBackground<'a> {
+    /// The background `model` and its own images `views` (the views among them at a scene
+    /// view's pose are that view's background colours; scene views at other poses are compared
+    /// with the background rendered there; empty: every view is). `Err` names the first
+    /// background view that is not usable ([`SceneError::Input`]).
+    pub fn new(model: &'a Nerf, views: &'a [View]) -> Result<SceneBackground<'a>, SceneError> {
+        check_views("background", views).map_err(SceneError::Input)?;
+        Ok(SceneBackground { model, views, depths: BackgroundDepths::default() })
+    }
+
+    /// The background model.
+    pub fn model(&self) -> &'a Nerf {
+        self.model
+    }
+
+    /// The background's own images.
+    pub fn views(&self) -> &'a [View] {
+        self.views
+    }
+
+    /// How many of the background's images have their depth held.
+    pub fn depths_held(&self) -> usize {
+        self.depths.held()
+    }
+
+    /// The background's prior of the scene `views` ([`crate::train::prior::scene_prior`], the
+    /// same bits), the background's depth at its images' poses read from what is held.
+    pub fn prior(
+        &mut self,
+        isa: Isa,
+        views: &[View],
+        sky: [f32; 3],
+        m: DensityThreshold,
+        pcfg: &PriorConfig,
+    ) -> ScenePrior {
+        scene_prior_held(isa, self.model, self.views, &mut self.depths, views, sky, m, pcfg)
+    }
+}
+
+/// Trains the default residual model of the scene `views` over `background` (its model and
+/// its own images, [`SceneBackground`]). `log` sees every step.
 pub fn train_scene(
     isa: Isa,
-    background: &Nerf,
-    background_views: &[View],
+    background: &mut SceneBackground<'_>,
     views: &[View],
     cfg: &TrainConfig,
     pcfg: &PriorConfig,
@@ -114,8 +170,11 @@ pub fn train_scene(
     if views.is_empty() {
         return Err(SceneError::Input(Error::bad_input("no scene views")));
     }
-    check_views("scene", views).and_then(|_| check_views("background", background_views)).map_err(SceneError::Input)?;
-    let prior = scene_prior(isa, background, background_views, views, cfg.background, DensityThreshold::DEFAULT, pcfg);
+    check_views("scene", views).map_err(SceneError::Input)?;
+    let clock = std::time::Instant::now();
+    let prior = background.prior(isa, views, cfg.background, DensityThreshold::DEFAULT, pcfg);
+    let prior_seconds = clock.elapsed().as_secs_f64();
+    let background = background.model;
     let config = ResidualConfig {
         residual: background.field.config().clone(),
         kind: MixKind::Mixnet(DensityMix::Raw),
@@ -135,5 +194,6 @@ pub fn train_scene(
     Ok(SceneModel {
         model: ResidualModel { field: start.field, params: state.params, occupancy: state.occupancy },
         prior,
+        prior_seconds,
     })
 }
