@@ -111,7 +111,8 @@ fn check_views(what: &str, views: &[View]) -> Result<(), Error> {
 /// rendered the first time a scene view is matched to it and held after (the same bits as
 /// rendering it again). A robot makes one when its background is trained and passes it to
 /// every [`train_scene`]: a scene phase then spends nothing on the background's depth at the
-/// poses it has already seen.
+/// poses it has already seen. It holds one `f32` per pixel of the matched background images (a
+/// third of what their colours take in memory: 16 MB for 100 views of 200×200).
 pub struct SceneBackground<'a> {
     model: &'a Nerf,
     views: &'a [View],
