@@ -13,9 +13,9 @@
 //! It is the default background-aware Residual-NeRF, the same steps as `rnerf train --data SCENE
 //! --background BG --background-data BACKGROUND` with the same settings, and the same bits
 //! (test `the_librarys_scene_phase_trains_the_command_lines_model` in `tests/cli_train.rs`):
-//! 1. the background's prior ([`crate::train::prior::scene_prior`]'s bits): change maps, the change region, the focus and
-//!    reach pixels, each scene image's pose registered and exposure corrected against the
-//!    background where that applies;
+//! 1. the background's prior ([`crate::train::prior::scene_prior`]'s bits): change maps, the
+//!    change region, the focus and reach pixels, each scene image's pose registered and
+//!    exposure corrected against the background where that applies;
 //! 2. the start at the background ([`residual_start`] with [`Prior::ALL`]): the residual a copy
 //!    of the background, the Mixnet's β 0 outside the region, the background's occupancy grid;
 //! 3. the residual's training ([`Trainer`]) on the corrected images, whose last step settles the
