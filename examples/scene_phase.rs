@@ -19,6 +19,7 @@ use residual_nerf::simd::Isa;
 use residual_nerf::train::prior::PriorConfig;
 use residual_nerf::train::scene::{train_scene, SceneBackground};
 use residual_nerf::train::trainer::train_nerf;
+use std::ops::ControlFlow;
 use std::time::Instant;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -42,7 +43,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // When the glass appears: the scene's images at the background's poses.
     let scene = workspace::workspace(size, views, 0.0, true);
     let t = Instant::now();
-    let trained = train_scene(isa, &mut kept, &scene.views, &demo.train, &PriorConfig::default(), |_| {})?;
+    let trained =
+        train_scene(isa, &mut kept, &scene.views, &demo.train, &PriorConfig::default(), |_| ControlFlow::Continue(()))?;
     let report = |what: &str, trained: &residual_nerf::train::scene::SceneModel, seconds: f64| {
         println!(
             "{what}: {:.1}% of the pixels changed, change region {} cells, {steps} steps, {seconds:.1} s (prior {:.2} s)",
@@ -79,7 +81,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // Later, two small glasses instead: the prior reads the background's depth it rendered above.
     let again = workspace::workspace_with(size, views, 0.0, workspace::Glass::Spheres(2));
     let t = Instant::now();
-    let retrained = train_scene(isa, &mut kept, &again.views, &demo.train, &PriorConfig::default(), |_| {})?;
+    let retrained =
+        train_scene(isa, &mut kept, &again.views, &demo.train, &PriorConfig::default(), |_| ControlFlow::Continue(()))?;
     report("second scene phase", &retrained, t.elapsed().as_secs_f64());
     Ok(())
 }

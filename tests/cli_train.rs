@@ -207,10 +207,16 @@ fn a_registered_run_resumes_at_its_registered_poses() {
 /// BACKGROUND`: the same prior, start and training, so the same model tensor for tensor.
 #[test]
 fn the_librarys_scene_phase_trains_the_command_lines_model() {
+    use residual_nerf::field::mix::{DensityMix, MixKind};
+    use residual_nerf::field::mixnet::MixnetEncoding;
+    use residual_nerf::field::residual::{ResidualConfig, ResidualModel};
     use residual_nerf::io::{save_nerf, save_residual};
+    use residual_nerf::render::DensityThreshold;
     use residual_nerf::train::prior::PriorConfig;
+    use residual_nerf::train::prior::{residual_start, scene_prior, Prior};
     use residual_nerf::train::scene::{train_scene, SceneBackground};
-    use residual_nerf::train::trainer::train_nerf;
+    use residual_nerf::train::trainer::{train_nerf, StepStats};
+    use std::ops::ControlFlow;
     let dir = scratch("scene_phase");
     let isa = Isa::detect();
     let (bg_dir, scene_dir) = (dir.join("background"), dir.join("scene"));
@@ -248,13 +254,50 @@ fn the_librarys_scene_phase_trains_the_command_lines_model() {
     cfg.seed = 3;
     cfg.random_background = !scene.had_alpha;
     cfg.rays_per_step = cfg.rays_for_views(&scene.views);
-    let mut steps = 0;
+    let (mut steps, pcfg) = (0, PriorConfig::default());
     let mut bg = SceneBackground::new(&background, &bg_data.views).unwrap();
-    let lib = train_scene(isa, &mut bg, &scene.views, &cfg, &PriorConfig::default(), |_| steps += 1).unwrap();
-    assert_eq!(steps, 40);
+    let lib = train_scene(isa, &mut bg, &scene.views, &cfg, &pcfg, |_| {
+        steps += 1;
+        ControlFlow::Continue(())
+    })
+    .unwrap();
+    assert_eq!((steps, lib.steps), (40, 40));
     assert_eq!(lib.prior.matched_views, 16, "every scene view has a background image at its pose");
     assert!(lib.model.field.region().is_some_and(|r| r.count() > 0), "no change region");
     let lib_file = dir.join("lib.safetensors");
     save_residual(&lib_file, &lib.model, &[]).unwrap();
     assert_eq!(tensors(&lib_file), tensors(&out));
+
+    // Stopped by its log after 15 of the 40 steps: the run's first 15 steps, its change region
+    // settled as a finished run's is; by hand, the same start stepped 15 times and finished.
+    let stop = |s: &StepStats| if s.step + 1 == 15 { ControlFlow::Break(()) } else { ControlFlow::Continue(()) };
+    let stopped = train_scene(isa, &mut bg, &scene.views, &cfg, &pcfg, stop).unwrap();
+    assert_eq!(stopped.steps, 15);
+    let prior =
+        scene_prior(isa, &background, &bg_data.views, &scene.views, cfg.background, DensityThreshold::DEFAULT, &pcfg);
+    let config = ResidualConfig {
+        residual: background.field.config().clone(),
+        kind: MixKind::Mixnet(DensityMix::Raw),
+        mixnet: MixnetEncoding::default(),
+    };
+    let mut start = residual_start(isa, &background, config, Prior::ALL, Some(&prior), &cfg, &pcfg);
+    let run_cfg = start.train_config(&cfg);
+    let corrected = prior.corrects_views().then(|| prior.corrected_views(&scene.views));
+    let views = corrected.as_deref().unwrap_or(&scene.views);
+    let by_hand = |finish: bool| {
+        let (params, occupancy) = (start.params.clone(), start.occupancy.clone());
+        let mut t = Trainer::starting_at(isa, &start.field, views, &run_cfg, params, occupancy);
+        for _ in 0..15 {
+            t.step().unwrap();
+        }
+        let state = if finish { t.finish() } else { t.into_state() };
+        let file = dir.join(if finish { "finished.safetensors" } else { "unsettled.safetensors" });
+        let model = ResidualModel { field: start.field.clone(), params: state.params, occupancy: state.occupancy };
+        save_residual(&file, &model, &[]).unwrap();
+        tensors(&file)
+    };
+    let stopped_file = dir.join("stopped.safetensors");
+    save_residual(&stopped_file, &stopped.model, &[]).unwrap();
+    assert_eq!(tensors(&stopped_file), by_hand(true), "a stopped scene phase is not its first steps, finished");
+    assert_ne!(tensors(&stopped_file), by_hand(false), "stopping early did not settle the change region");
 }

@@ -466,12 +466,14 @@ fn the_scene_phase_refuses_unusable_views_with_one_line_naming_the_view() {
     use residual_nerf::train::prior::PriorConfig;
     use residual_nerf::train::scene::{train_scene, SceneBackground, SceneError};
     use residual_nerf::train::trainer::TrainConfig;
+    use std::ops::ControlFlow;
     let background = trained();
     let views = synth::tabletop(8, 3, 0.3).views;
     let cfg = TrainConfig::with_steps(1);
     let run = |bg_views: &[residual_nerf::data::View], views: &[residual_nerf::data::View], needle: &str| {
-        let trained = SceneBackground::new(&background, bg_views)
-            .and_then(|mut bg| train_scene(Isa::detect(), &mut bg, views, &cfg, &PriorConfig::default(), |_| {}));
+        let trained = SceneBackground::new(&background, bg_views).and_then(|mut bg| {
+            train_scene(Isa::detect(), &mut bg, views, &cfg, &PriorConfig::default(), |_| ControlFlow::Continue(()))
+        });
         let e = trained.err().expect("refused");
         let SceneError::Input(e) = e else { panic!("not an input error: {e}") };
         assert_eq!(e.kind(), ErrorKind::BadInput, "{e}");

@@ -40,6 +40,7 @@ use crate::render::DensityThreshold;
 use crate::simd::Isa;
 use crate::train::prior::{residual_start, scene_prior_held, BackgroundDepths, Prior, PriorConfig, ScenePrior};
 use crate::train::trainer::{StepStats, TrainConfig, TrainError, Trainer};
+use std::ops::ControlFlow;
 
 /// A trained scene: the model and what the background's prior found.
 pub struct SceneModel {
@@ -48,8 +49,12 @@ pub struct SceneModel {
     /// The change maps, the region and the pixels the training drew from, the registered poses
     /// and the exposure corrections ([`ScenePrior::changed_share`], [`ScenePrior::region`], …).
     pub prior: ScenePrior,
-    /// Wall seconds of the prior (the training's are in its last [`StepStats::seconds`]).
+    /// Wall seconds of the prior.
     pub prior_seconds: f64,
+    /// Steps trained: the config's, or fewer when `log` stopped the run ([`train_scene`]).
+    pub steps: u32,
+    /// Seconds of training (the steps' own, as [`StepStats::seconds`]).
+    pub train_seconds: f64,
 }
 
 /// Why [`train_scene`] stopped.
@@ -159,14 +164,19 @@ impl<'a> SceneBackground<'a> {
 }
 
 /// Trains the default residual model of the scene `views` over `background` (its model and
-/// its own images, [`SceneBackground`]). `log` sees every step.
+/// its own images, [`SceneBackground`]). `log` sees every step and may end the run there
+/// (`ControlFlow::Break`): a robot out of time, or a capture superseded. The model is then what
+/// the steps so far trained, with the change region's occupancy settled as at the run's end
+/// ([`Trainer::finish`]), so the onboard renderer reads it as it reads a finished one; the
+/// learning rate follows the whole run's schedule up to there (docs/DECISIONS.md, "A scene
+/// phase stopped early").
 pub fn train_scene(
     isa: Isa,
     background: &mut SceneBackground<'_>,
     views: &[View],
     cfg: &TrainConfig,
     pcfg: &PriorConfig,
-    mut log: impl FnMut(StepStats),
+    mut log: impl FnMut(&StepStats) -> ControlFlow<()>,
 ) -> Result<SceneModel, SceneError> {
     if views.is_empty() {
         return Err(SceneError::Input(Error::bad_input("no scene views")));
@@ -189,12 +199,16 @@ pub fn train_scene(
     let views = corrected.as_deref().unwrap_or(views);
     let mut trainer = Trainer::starting_at(isa, &start.field, views, &cfg, start.params, start.occupancy);
     while !trainer.is_done() {
-        log(trainer.step()?);
+        if log(&trainer.step()?).is_break() {
+            break;
+        }
     }
-    let state = trainer.into_state();
+    let state = trainer.finish();
     Ok(SceneModel {
         model: ResidualModel { field: start.field, params: state.params, occupancy: state.occupancy },
         prior,
         prior_seconds,
+        steps: state.step,
+        train_seconds: state.seconds,
     })
 }

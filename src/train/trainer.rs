@@ -626,6 +626,25 @@ impl<'a, M: Model> Trainer<'a, M> {
         self.state
     }
 
+    /// Ends the run after the steps taken so far as its last step would have: a grid frozen
+    /// outside its pinned cells (a residual model's change region) has those cells' values
+    /// settled from a lattice in each ([`OccupancyGrid::settle_pinned`]), for the renderers
+    /// that skip cells by value. The same as [`Self::into_state`] once every step is done (the
+    /// last step settled them) or on a grid without that freeze. For a run stopped early: a
+    /// robot's scene phase out of time ([`crate::train::scene::train_scene`]).
+    pub fn finish(mut self) -> TrainState<M::Params> {
+        if !self.is_done() && self.state.occupancy.is_frozen_outside_pins() {
+            let modes: Vec<u64> = rayon::broadcast(|_| crate::simd::fpmode::flush_denormals());
+            let main_mode = crate::simd::fpmode::flush_denormals();
+            let (isa, model, state, ctx) = (self.isa, self.model, &mut self.state, &mut self.ctx);
+            let params = &state.params;
+            state.occupancy.settle_pinned(SETTLE_LATTICE, |pts, sigma| model.density(isa, params, pts, sigma, ctx));
+            rayon::broadcast(|c| crate::simd::fpmode::restore(modes[c.index()]));
+            crate::simd::fpmode::restore(main_mode);
+        }
+        self.state
+    }
+
     /// Runs the next step. A step whose loss or gradients are not finite changes nothing and
     /// is counted ([`TrainState::skipped`]); too many in a row, or too many steps without a
     /// live sample, end the run with an error (the state stays the last good one).
