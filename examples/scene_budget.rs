@@ -6,11 +6,12 @@
 //! its own from the start; `full` runs every step.
 //!
 //! ```text
-//! cargo run --release --example scene_budget -- BG_MODEL BACKGROUND_DIR SCENE_DIR... [-- SECONDS...]
+//! cargo run --release --example scene_budget -- [--scene-views N] BG_MODEL BACKGROUND_DIR SCENE_DIR... [-- SECONDS...]
 //! ```
 //!
 //! Default budgets: 10, 15 and 20 s, and `full`. The scene phase takes `rnerf train`'s
-//! settings for the capture (seed 0, the rays per step from its size).
+//! settings for the capture (seed 0, the rays per step from its size); `--scene-views N` trains
+//! on N evenly spaced views of each scene, as `rnerf train --scene-views N` does.
 
 use residual_nerf::app::{evaluate, EvalOptions};
 use residual_nerf::data::{Dataset, LoadOptions};
@@ -27,13 +28,21 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
+    let mut args: Vec<String> = std::env::args().skip(1).collect();
+    let scene_views = match args.first().map(String::as_str) {
+        Some("--scene-views") => {
+            let n = args.get(1).ok_or("--scene-views needs a count")?.parse::<usize>()?;
+            args.drain(..2);
+            Some(n)
+        }
+        _ => None,
+    };
     let (paths, budgets) = match args.iter().position(|a| a == "--") {
         Some(i) => (&args[..i], args[i + 1..].iter().map(|b| b.parse::<f64>()).collect::<Result<Vec<_>, _>>()?),
         None => (&args[..], vec![10.0, 15.0, 20.0]),
     };
     let [model, bg_dir, scenes @ ..] = paths else {
-        return Err("usage: scene_budget BG_MODEL BACKGROUND_DIR SCENE_DIR... [-- SECONDS...]".into());
+        return Err("usage: scene_budget [--scene-views N] BG_MODEL BACKGROUND_DIR SCENE_DIR... [-- SECONDS...]".into());
     };
     let isa = Isa::detect();
     let background = load_nerf(Path::new(model))?;
@@ -46,7 +55,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!("|---|---|---|---|---|---|---|---|");
     for dir in scenes {
         let name = Path::new(dir).file_name().map_or(dir.clone(), |n| n.to_string_lossy().into_owned());
-        let scene = Dataset::load(Path::new(dir), "train", &train_opts)?;
+        let mut scene = Dataset::load(Path::new(dir), "train", &train_opts)?;
+        if let Some(n) = scene_views {
+            scene.views = residual_nerf::data::evenly_spaced(&scene.views, n);
+        }
         let test = Dataset::load(Path::new(dir), "test", &LoadOptions::default())?;
         let mut cfg = TrainConfig::default();
         cfg.random_background = !scene.had_alpha;
