@@ -7,8 +7,18 @@
 //! the 1-px ring split by the side its mask neighbour lies on. With a second model (e.g. the
 //! background), the same for it.
 //!
+//! With `--images`, no model: how far beyond the mask the scene's images differ from the
+//! background's image at the same pose. Every pixel of each test view with a background test
+//! view at its pose, in the same bands, and per band the median and 90th percentile of the
+//! largest channel's |scene − background| (in 1/255) and the share above the change maps'
+//! tolerance (`CHANGE_TOLERANCE`, as loaded, before the maps' 3×3 box filter). The masks are the
+//! pixel centre's first hit, so a band outside the mask that differs is colour the images carry
+//! beyond the object's outline (the renderer's pixel filter, its denoiser, shadows and
+//! reflections): what a NeRF trained on the images fits there.
+//!
 //! ```text
 //! cargo run --release --example near_crop_bands -- MODEL SCENE_DIR [BACKGROUND_MODEL]
+//! cargo run --release --example near_crop_bands -- --images BACKGROUND_DIR SCENE_DIR...
 //! ```
 
 use residual_nerf::data::dataset::{Dataset, LoadOptions};
@@ -18,6 +28,7 @@ use residual_nerf::io::{load_model, LoadedModel};
 use residual_nerf::render::view::Scene;
 use residual_nerf::render::{DensityThreshold, ViewRenderer};
 use residual_nerf::simd::Isa;
+use residual_nerf::train::prior::CHANGE_TOLERANCE;
 use std::path::Path;
 
 /// Upper edges of the distance bands (pixels); the last band is everything farther.
@@ -121,12 +132,67 @@ fn print(name: &str, b: &[DepthErrors]) {
     }
 }
 
+/// Value at quantile `q` of `v` (sorted in place).
+fn quantile(v: &mut [f32], q: f64) -> f32 {
+    v.sort_by(f32::total_cmp);
+    v.get(((v.len().max(1) - 1) as f64 * q).round() as usize).copied().unwrap_or(f32::NAN)
+}
+
+/// `--images`: per scene, the bands' differences from the background image at the same pose.
+fn image_profile(bg_dir: &str, scenes: &[String]) -> Result<(), String> {
+    let load = |d: &str| Dataset::load(Path::new(d), "test", &LoadOptions::default()).map_err(|e| format!("{d}: {e}"));
+    let bg = load(bg_dir)?;
+    for dir in scenes {
+        let scene = load(dir)?;
+        let mut diffs: Vec<Vec<f32>> = vec![Vec::new(); BANDS.len() + 1];
+        let mut views = 0;
+        for (v, f) in scene.views.iter().zip(&scene.frames) {
+            let Some(b) = bg.views.iter().find(|b| b.pose == v.pose && b.intrinsics == v.intrinsics) else {
+                continue;
+            };
+            let mask = f.mask.as_ref().ok_or_else(|| format!("{dir}: test frame {} has no mask", f.index))?;
+            let dist = distance(mask, v.intrinsics.width as usize, v.intrinsics.height as usize);
+            for (p, (s, c)) in v.rgb.iter().zip(&b.rgb).enumerate() {
+                let band = BANDS.iter().position(|&e| dist[p] <= e).unwrap_or(BANDS.len());
+                diffs[band].push((0..3).map(|i| (s[i] - c[i]).abs()).fold(0.0, f32::max));
+            }
+            views += 1;
+        }
+        if views == 0 {
+            return Err(format!("{dir}: no test view at a background test view's pose"));
+        }
+        let total: usize = diffs.iter().map(Vec::len).sum();
+        println!("{dir}: {views} test views at the background's poses");
+        println!(
+            "| band (distance to the mask) | pixels | median (/255) | 90th percentile (/255) | above the tolerance |"
+        );
+        println!("|---|---|---|---|---|");
+        for (b, d) in diffs.iter_mut().enumerate().filter(|(_, d)| !d.is_empty()) {
+            let above = d.iter().filter(|&&x| x > CHANGE_TOLERANCE).count() as f64 / d.len() as f64;
+            let share = d.len() as f64 / total as f64;
+            let (median, p90) = (quantile(d, 0.5) * 255.0, quantile(d, 0.9) * 255.0);
+            println!("| {} | {:.1}% | {median:.1} | {p90:.1} | {:.0}% |", label(b), 100.0 * share, 100.0 * above);
+        }
+    }
+    Ok(())
+}
+
 fn main() -> Result<(), String> {
     let args: Vec<String> = std::env::args().skip(1).collect();
+    if let [flag, bg_dir, scenes @ ..] = &args[..] {
+        if flag == "--images" && !scenes.is_empty() {
+            return image_profile(bg_dir, scenes);
+        }
+    }
     let (model, dir, background) = match &args[..] {
         [m, d] => (m, d, None),
         [m, d, b] => (m, d, Some(b)),
-        _ => return Err("usage: near_crop_bands MODEL SCENE_DIR [BACKGROUND_MODEL]".into()),
+        _ => {
+            return Err(
+                "usage: near_crop_bands MODEL SCENE_DIR [BACKGROUND_MODEL] | --images BACKGROUND_DIR SCENE_DIR..."
+                    .into(),
+            )
+        }
     };
     let isa = Isa::detect();
     let test = Dataset::load(Path::new(dir), "test", &LoadOptions::default()).map_err(|e| format!("{dir}: {e}"))?;

@@ -53,6 +53,17 @@ pub fn restore(old: u64) {
     let _ = old;
 }
 
+/// Runs `f` with denormals flushed on every thread of the rayon pool and on this one, then
+/// restores each thread's mode: what a training step (and the end of a run) runs under.
+pub fn flushed_on_pool<R>(f: impl FnOnce() -> R) -> R {
+    let modes: Vec<u64> = rayon::broadcast(|_| flush_denormals());
+    let main_mode = flush_denormals();
+    let result = f();
+    rayon::broadcast(|ctx| restore(modes[ctx.index()]));
+    restore(main_mode);
+    result
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -368,7 +368,7 @@ fn registered_pose(v: &View, r: &Option<Registration>) -> crate::geometry::Pose 
     r.filter(|r| r.applied).map_or(v.pose, |r| r.pose)
 }
 
-/// Registers every view without a background image at its pose (`matches[i]` is `None`)
+/// Registers every view without a background image at its pose (`matched[i]` is `None`)
 /// against `background` rendered at its pose (one render each; [`register_at`]). Returns the
 /// registrations, and the renders of the views whose pose stays (the background there for
 /// [`background_at`]).
@@ -377,14 +377,14 @@ fn register_views(
     isa: Isa,
     background: &Nerf,
     views: &[View],
-    matches: &[Option<&View>],
+    matched: &[Option<usize>],
     sky: [f32; 3],
     m: DensityThreshold,
 ) -> (Vec<Option<Registration>>, Vec<Option<RenderedView>>) {
     let mut renderer = ViewRenderer::new();
     renderer.set_early_stop(PRIOR_EARLY_STOP, PRIOR_STOP_FILL);
     let scene = Scene::from(background);
-    let each = views.iter().zip(matches);
+    let each = views.iter().zip(matched);
     each.map(|(v, matched)| match matched {
         Some(_) => (None, None),
         None => {
@@ -695,9 +695,8 @@ pub(crate) fn scene_prior_held(
     // A view at a background image's pose is compared with that image; the rest are
     // registered (when on) and compared with the background rendered at their pose.
     let matched: Vec<Option<usize>> = views.iter().map(|v| bg_views.iter().position(|b| same_pose(b, v))).collect();
-    let matches: Vec<Option<&View>> = matched.iter().map(|b| b.map(|b| &bg_views[b])).collect();
     let (registrations, rendered) = match cfg.register {
-        true => register_views(isa, background, views, &matches, sky, m),
+        true => register_views(isa, background, views, &matched, sky, m),
         false => (vec![None; views.len()], (0..views.len()).map(|_| None).collect()),
     };
     let registered: Vec<View>;
@@ -711,7 +710,7 @@ pub(crate) fn scene_prior_held(
     };
     let bg =
         background_at(isa, background, bg_views, held, views, &matched, rendered, sky, m, cfg.depth_solid_fraction);
-    let matched_views = matches.iter().flatten().count();
+    let matched_views = matched.iter().flatten().count();
     let corrections: Vec<ColourCorrection> = views
         .par_iter()
         .zip(&bg)
@@ -730,7 +729,7 @@ pub(crate) fn scene_prior_held(
         .par_iter()
         .zip(&bg)
         .zip(&corrections)
-        .zip(&matches)
+        .zip(&matched)
         .map(|(((v, (colours, _)), c), matched)| {
             let (w, h) = (v.intrinsics.width, v.intrinsics.height);
             let cfg = if matched.is_some() { cfg } else { &rendered_cfg };

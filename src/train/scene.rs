@@ -139,11 +139,6 @@ impl<'a> SceneBackground<'a> {
         self.model
     }
 
-    /// The background's own images.
-    pub fn views(&self) -> &'a [View] {
-        self.views
-    }
-
     /// How many of the background's images have their depth held.
     pub fn depths_held(&self) -> usize {
         self.depths.held()

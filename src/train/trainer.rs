@@ -633,16 +633,21 @@ impl<'a, M: Model> Trainer<'a, M> {
     /// last step settled them) or on a grid without that freeze. For a run stopped early: a
     /// robot's scene phase out of time ([`crate::train::scene::train_scene`]).
     pub fn finish(mut self) -> TrainState<M::Params> {
-        if !self.is_done() && self.state.occupancy.is_frozen_outside_pins() {
-            let modes: Vec<u64> = rayon::broadcast(|_| crate::simd::fpmode::flush_denormals());
-            let main_mode = crate::simd::fpmode::flush_denormals();
+        if !self.is_done() {
+            crate::simd::fpmode::flushed_on_pool(|| self.settle_region());
+        }
+        self.state
+    }
+
+    /// The change region's cell values from a lattice in each cell, not the refreshes' single
+    /// points (what the renderers that skip cells by value read): the end of a run whose grid is
+    /// frozen outside its pinned cells; nothing on other grids.
+    fn settle_region(&mut self) {
+        if self.state.occupancy.is_frozen_outside_pins() {
             let (isa, model, state, ctx) = (self.isa, self.model, &mut self.state, &mut self.ctx);
             let params = &state.params;
             state.occupancy.settle_pinned(SETTLE_LATTICE, |pts, sigma| model.density(isa, params, pts, sigma, ctx));
-            rayon::broadcast(|c| crate::simd::fpmode::restore(modes[c.index()]));
-            crate::simd::fpmode::restore(main_mode);
         }
-        self.state
     }
 
     /// Runs the next step. A step whose loss or gradients are not finite changes nothing and
@@ -651,12 +656,14 @@ impl<'a, M: Model> Trainer<'a, M> {
     pub fn step(&mut self) -> Result<StepStats, TrainError> {
         assert!(!self.is_done(), "train: step past the end of the run");
         let start = Instant::now();
-        // Denormals are ~100× slower on x86; every thread of the pool flushes them while training.
-        let modes: Vec<u64> = rayon::broadcast(|_| crate::simd::fpmode::flush_denormals());
-        let main_mode = crate::simd::fpmode::flush_denormals();
-        let result = self.step_inner();
-        rayon::broadcast(|ctx| crate::simd::fpmode::restore(modes[ctx.index()]));
-        crate::simd::fpmode::restore(main_mode);
+        let result = crate::simd::fpmode::flushed_on_pool(|| {
+            let result = self.step_inner();
+            // The run's last step (counted, whether or not it was finite) ends it.
+            if self.is_done() {
+                self.settle_region();
+            }
+            result
+        });
         self.state.seconds += start.elapsed().as_secs_f64();
         let mut stats = result?;
         stats.seconds = self.state.seconds;
@@ -806,11 +813,6 @@ impl<'a, M: Model> Trainer<'a, M> {
         // groups() lent them out mutably.
         model.after_step(params);
         state.step += 1;
-        if state.step == cfg.steps && occupancy.is_frozen_outside_pins() {
-            // The run's end: the change region's cell values from a lattice in each cell, not
-            // the refreshes' single points (what the renderers that skip cells by value read).
-            occupancy.settle_pinned(SETTLE_LATTICE, |pts, sigma| model.density(isa, params, pts, sigma, ctx));
-        }
         if *bad_in_a_row >= MAX_BAD_STEPS_IN_A_ROW {
             return Err(TrainError::NonFinite { step, skipped: state.skipped });
         }
