@@ -300,4 +300,23 @@ fn the_librarys_scene_phase_trains_the_command_lines_model() {
     save_residual(&stopped_file, &stopped.model, &[]).unwrap();
     assert_eq!(tensors(&stopped_file), by_hand(true), "a stopped scene phase is not its first steps, finished");
     assert_ne!(tensors(&stopped_file), by_hand(false), "stopping early did not settle the change region");
+
+    // `rnerf train --budget 0`: out of time before the first step, so it stops after that step
+    // and writes the library's model stopped there, saying so in its metadata.
+    let first = train_scene(isa, &mut bg, &scene.views, &cfg, &pcfg, |_| ControlFlow::Break(())).unwrap();
+    assert_eq!(first.steps, 1);
+    let first_file = dir.join("first.safetensors");
+    save_residual(&first_file, &first.model, &[]).unwrap();
+    let budget_out = dir.join("budget.safetensors");
+    let mut budget_args = args.to_vec();
+    let out_at = budget_args.len() - 1;
+    budget_args[out_at] = budget_out.to_str().unwrap();
+    budget_args.extend(["--budget", "0"]);
+    let o = rnerf(&budget_args).output().unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--budget 0 s spent"), "{}", stderr(&o));
+    assert_eq!(tensors(&budget_out), tensors(&first_file), "--budget 0 is not the run stopped after its first step");
+    let stopped_at = run_metadata(&budget_out).into_iter().find(|(k, _)| k == "train_stopped").map(|(_, v)| v);
+    assert_eq!(stopped_at.as_deref(), Some("after step 1 of 40 (--budget 0 s)"));
+    assert!(run_metadata(&out).iter().all(|(k, _)| k != "train_stopped"), "a finished run says it was stopped");
 }

@@ -20,6 +20,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Arc;
+use std::time::{Duration, Instant};
 
 /// The grid and trainer settings of `rnerf train` and `rnerf compare`: the defaults
 /// ([`TrainConfig::default`], log2T = 17) with the command line's steps, rays, table size and
@@ -85,13 +86,15 @@ pub fn checkpoint_path(out: &Path) -> PathBuf {
 }
 
 pub(super) fn run(a: &TrainArgs) -> Result<(), Failure> {
+    // `--budget` counts from here: loading and the background prior spend it too.
+    let deadline = a.budget.map(|s| (s, Instant::now() + Duration::from_secs_f64(s)));
     check_output_file(&a.out, "--out")?;
     if let Some(csv) = &a.csv {
         check_output_file(csv, "--csv")?;
     }
     match &a.resume {
-        None => fresh(a),
-        Some(path) => resume(a, path),
+        None => fresh(a, deadline),
+        Some(path) => resume(a, path, deadline),
     }
 }
 
@@ -123,7 +126,10 @@ fn describe_data(data: &Dataset) {
     eprintln!("rnerf train: scale: {scale}; lens: {distorted} of {} views distorted", lens.len());
 }
 
-fn fresh(a: &TrainArgs) -> Result<(), Failure> {
+/// `--budget`: its seconds and the instant they run out.
+type Deadline = Option<(f64, Instant)>;
+
+fn fresh(a: &TrainArgs, deadline: Deadline) -> Result<(), Failure> {
     // The background first: a wrong one must stop us before any work.
     let background = a.background.as_deref().map(|p| load_background(p, "--background")).transpose()?;
     let mut data = load_data(a)?;
@@ -233,7 +239,7 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
             };
             let extra = run_metadata(&cfg, a, Some(&residual), poses.as_deref());
             let trainer = Trainer::starting_at(isa, &model, &data.views, &cfg, start.params, start.occupancy);
-            drive(a, &model, trainer, &extra)
+            drive(a, &model, trainer, &extra, deadline)
         }
         _ => {
             // With registration: passes of a NeRF, every image registered against it, then the
@@ -270,7 +276,7 @@ fn fresh(a: &TrainArgs) -> Result<(), Failure> {
             let model = NerfField::new(field);
             let extra = run_metadata(&cfg, a, None, poses.as_deref());
             let trainer = Trainer::new(isa, &model, data.aabb, &data.views, &cfg);
-            drive(a, &model, trainer, &extra)
+            drive(a, &model, trainer, &extra, deadline)
         }
     }
 }
@@ -413,7 +419,7 @@ fn describe_run(cfg: &TrainConfig, log2t: u32, isa: Isa) {
 
 /// `--resume`: the model, optimiser state and settings from the checkpoint; the data must be
 /// the data it was trained on.
-fn resume(a: &TrainArgs, path: &Path) -> Result<(), Failure> {
+fn resume(a: &TrainArgs, path: &Path, deadline: Deadline) -> Result<(), Failure> {
     let (model, checkpoint) = load_checkpoint(path).map_err(|e| format!("--resume: {e}"))?;
     let mut data = load_data(a)?;
     let aabb = match &model {
@@ -458,14 +464,14 @@ fn resume(a: &TrainArgs, path: &Path) -> Result<(), Failure> {
             describe_run(&cfg, field.config().grid.log2_table_size, isa);
             let state = checkpoint.into_state(&field, params, occupancy).map_err(at)?;
             let trainer = Trainer::from_state(isa, &field, &data.views, &cfg, state).map_err(at)?;
-            drive(a, &field, trainer, &extra)
+            drive(a, &field, trainer, &extra, deadline)
         }
         LoadedModel::Residual(m) => {
             let ResidualModel { field, params, occupancy } = *m;
             describe_run(&cfg, field.residual().config().grid.log2_table_size, isa);
             let state = checkpoint.into_state(&field, params, occupancy).map_err(at)?;
             let trainer = Trainer::from_state(isa, &field, &data.views, &cfg, state).map_err(at)?;
-            drive(a, &field, trainer, &extra)
+            drive(a, &field, trainer, &extra, deadline)
         }
     }
 }
@@ -474,11 +480,14 @@ fn resume(a: &TrainArgs, path: &Path) -> Result<(), Failure> {
 /// `--checkpoint-every` steps, and SIGINT / SIGTERM handling (finish the step, checkpoint,
 /// exit 128 + signal); writes the model to `--out` and removes the checkpoint. A run that
 /// fails ([`crate::train::trainer::TrainError`]) checkpoints its last good state and fails.
+/// Past `deadline` (`--budget`) the run ends after the current step ([`Trainer::finish`]) and
+/// its model is written as a finished run's, with the steps it took in its metadata.
 fn drive<M: ModelFile>(
     a: &TrainArgs,
     model: &M,
     mut trainer: Trainer<'_, M>,
     extra: &[(&str, String)],
+    deadline: Deadline,
 ) -> Result<(), Failure> {
     let signal = Arc::new(AtomicUsize::new(0));
     let seen = Arc::new(AtomicBool::new(false));
@@ -498,6 +507,7 @@ fn drive<M: ModelFile>(
     };
     let mut progress = Progress::new("train", cfg.steps as u64);
     let mut csv = String::from("step,seconds,loss,psnr,samples_per_ray,marched_per_ray,occupancy,lr,skipped\n");
+    let mut stopped = None;
     while !trainer.is_done() {
         let sig = signal.load(Ordering::SeqCst);
         if sig != 0 {
@@ -526,7 +536,8 @@ fn drive<M: ModelFile>(
             }
         };
         let done = s.step + 1;
-        if done % 10 == 0 || done == cfg.steps {
+        let out_of_time = deadline.is_some_and(|(_, at)| Instant::now() >= at);
+        if done % 10 == 0 || done == cfg.steps || out_of_time {
             let psnr = -10.0 * (s.loss as f64).log10();
             let rays_per_s = done as f64 * cfg.rays_per_step as f64 / s.seconds.max(1e-9);
             let _ = writeln!(
@@ -555,9 +566,22 @@ fn drive<M: ModelFile>(
         if a.checkpoint_every.is_some_and(|n| done % n == 0) && done < cfg.steps {
             save_checkpoint_now(&trainer)?;
         }
+        if let Some((seconds, at)) = deadline.filter(|_| out_of_time && done < cfg.steps) {
+            let late = Instant::now().duration_since(at).as_secs_f64();
+            eprintln!(
+                "rnerf train: --budget {seconds} s spent ({late:.2} s over) after step {done} of {}; writing the model \
+                 of the steps so far",
+                cfg.steps
+            );
+            stopped = Some(format!("after step {done} of {} (--budget {seconds} s)", cfg.steps));
+            break;
+        }
     }
-    let state = trainer.into_state();
+    let state = trainer.finish();
     let mut extra = extra.to_vec();
+    if let Some(s) = stopped {
+        extra.push(("train_stopped", s));
+    }
     if let Some(g) = &state.gains {
         // The learned gains: in the log as a range per channel, in the model as JSON rows.
         let gains = g.gains();

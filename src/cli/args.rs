@@ -146,6 +146,9 @@ pub struct TrainArgs {
     /// Steps between checkpoints (`--checkpoint-every`); none when absent (an interrupted run
     /// still writes one).
     pub checkpoint_every: Option<u32>,
+    /// Wall seconds from the command's start after which the run stops after its current step
+    /// and writes the model of the steps so far (`--budget`); none when absent.
+    pub budget: Option<f64>,
     /// A checkpoint to continue from with its own settings (`--resume`).
     pub resume: Option<PathBuf>,
     /// Train on this many evenly spaced views of the split (`--scene-views`); all when absent.

@@ -39,6 +39,7 @@ pub(super) const FLAGS: &[Flag] = &[
     Flag { name: "near-grad", commands: &["train"], setting: true },
     Flag { name: "fixed-background", commands: &["train"], setting: true },
     Flag { name: "checkpoint-every", commands: &["train"], setting: false },
+    Flag { name: "budget", commands: &["train"], setting: false },
     Flag { name: "resume", commands: &["train"], setting: false },
     Flag { name: "scene-views", commands: &["train", "compare"], setting: false },
     Flag { name: "prior", commands: &["train"], setting: true },
@@ -128,6 +129,7 @@ pub(super) struct Flags {
     pub(super) methods: Option<Vec<crate::compare::Method>>,
     pub(super) eval_every: Option<u32>,
     pub(super) checkpoint_every: Option<u32>,
+    pub(super) budget: Option<f64>,
     pub(super) resume: Option<PathBuf>,
     pub(super) scene_views: Option<usize>,
     pub(super) prior: Option<crate::train::prior::Prior>,
@@ -172,6 +174,13 @@ impl Flags {
         self.given.push(name.to_string());
         match name {
             "checkpoint-every" => self.checkpoint_every = Some(positive(p, name)?),
+            "budget" => {
+                let v: f64 = number(p, name)?;
+                if !(v.is_finite() && (0.0..=1e7).contains(&v)) {
+                    return Err(err(format!("--budget: {v} is not a number of seconds in [0, 1e7]")));
+                }
+                self.budget = Some(v);
+            }
             "scene-views" => self.scene_views = Some(positive(p, name)?),
             "background-data" => self.background_data = Some(path(p, name)?),
             "prior" => {

@@ -102,6 +102,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             near_grad: f.near_grad,
             random_bg: f.fixed_background.then_some(false),
             checkpoint_every: f.checkpoint_every,
+            budget: f.budget,
             resume: f.resume.clone(),
             scene_views: f.scene_views,
             prior: f.prior_hints()?,

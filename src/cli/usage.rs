@@ -11,7 +11,7 @@ commands:
          [--focus-share F] [--region-vote V,S] [--region-dilate N] [--change-tolerance T[,R]] [--frozen-stride N] [--frozen-tail T] [--frozen-coarse T,N|off] [--photo-tail on|off] [--ray-pool N]
          [--exposure-correction on|off] [--pose-registration on|off]] [--pose-registration on [--registration-passes N]]
          [--image-gains on|off] [--error-map S|off] [--pixel-jitter on|off] [--pixel-rays K] [--checkpoint-every N]
-         [--scene-views N]
+         [--scene-views N] [--budget SECONDS]
          train a NeRF on DIR's transforms_<split>.json (default split: train); with --background,
          a Residual-NeRF (residual + Mixnet over the frozen background; --mix sum: Residual-NeRF-S),
          by default background-aware (--prior all: start at the background, a change region voted
@@ -33,10 +33,14 @@ commands:
          its footprint (a 1.5 px Blackman-Harris filter, as the dev renders'; the step's rays
          cover rays/K pixels; default 1). --beta-margin N: the β penalty spares the changed pixels grown by N pixels
          (default 2, the change maps' own dilation).
+         --budget S: once S seconds of wall time have passed since the command started
+         (loading and the background prior included), stop after the current step and write
+         the model of the steps so far (a residual model's change region settled as at a run's
+         end; the learning rate keeps the whole run's schedule).
          Checkpoints go to MODEL with '.ckpt' before the extension (every N steps, and on
          SIGINT/SIGTERM, which then exit 130/143); a finished run removes its checkpoint
   train  --resume CHECKPOINT --data DIR --out MODEL [--split NAME] [--csv FILE] [--threads N]
-         [--checkpoint-every N]
+         [--checkpoint-every N] [--budget SECONDS]
          continue an interrupted run bit-exactly, with the checkpoint's settings, on the same data
   render --model MODEL --data DIR --out DIR [--split NAME] [--depth threshold|expected]
          [--m M | --m-raw S] [--colour-tail R|off] [--depth-only [--solid-fraction F] [--coarse-start N|off]]
