@@ -3,19 +3,21 @@
 # (loading and the background prior included) on each dev scene, each model scored by
 # `rnerf eval --depth-only` (object MAE, near-crop RMSE), beside Dex-NeRF's finished models.
 #
-#   [SEEDS="0 1 2"] [RAYS="capture 512"] scripts/train_budget.sh RNERF DEV BG_MODEL OUT "BUDGETS" [DEX_DIR]
+#   [SEEDS="0 1 2"] [RAYS="capture 512"] [VIEWS=25] scripts/train_budget.sh RNERF DEV BG_MODEL OUT "BUDGETS" [DEX_DIR]
 #
 # RNERF: the rnerf binary; DEV: the dev set (its background/ and scenes); BG_MODEL: the trained
 # background; OUT: where models, evaluations and table.md go; BUDGETS: seconds, space separated
 # ("15 30"); DEX_DIR: holds dex_SCENE.safetensors (Dex-NeRF's finished seed-0 models), scored
 # alongside. SEEDS: the training seeds (default 0); RAYS: rays per step, "capture" for the
-# command line's own count (default). Runs at $RNERF_CPU_LEVEL (set it, e.g. avx2), one job at a
+# command line's own count (default); VIEWS: train on that many evenly spaced scene views
+# (`--scene-views`; default all). Runs at $RNERF_CPU_LEVEL (set it, e.g. avx2), one job at a
 # time. table.md: per budget and rays, each seed's three-scene means and their mean.
 set -euo pipefail
 RNERF=$1 DEV=$2 BG=$3 OUT=$4 BUDGETS=$5 DEX=${6:-}
 SCENES=${SCENES:-glass_up bottle wine_flat}
 SEEDS=${SEEDS:-0}
 RAYS=${RAYS:-capture}
+VIEWS=${VIEWS:-}
 mkdir -p "$OUT"
 row() { # model scene label seed
   "$RNERF" eval --model "$1" --data "$DEV/$2" --json --depth-only > "$OUT/$3_$2_s$4.json" 2> /dev/null
@@ -36,9 +38,10 @@ for b in $BUDGETS; do
     for seed in $SEEDS; do
       for s in $SCENES; do
         m="$OUT/res_${s}_b${b}_r${r}_s$seed.safetensors"
-        rays=(); [ "$r" = capture ] || rays=(--rays "$r")
+        opts=(); [ "$r" = capture ] || opts=(--rays "$r")
+        [ -z "$VIEWS" ] || opts+=(--scene-views "$VIEWS")
         "$RNERF" train --data "$DEV/$s" --background "$BG" --background-data "$DEV/background" --seed "$seed" \
-          --budget "$b" "${rays[@]}" --out "$m" 2> "$OUT/train_${s}_b${b}_r${r}_s$seed.log"
+          --budget "$b" "${opts[@]}" --out "$m" 2> "$OUT/train_${s}_b${b}_r${r}_s$seed.log"
         row "$m" "$s" "b${b}_r$r" "$seed"
       done
     done
