@@ -129,6 +129,9 @@ fn describe_data(data: &Dataset) {
 /// `--budget`: its seconds and the instant they run out.
 type Deadline = Option<(f64, Instant)>;
 
+/// The step after which a budgeted run says, from its pace so far, whether the budget holds it.
+const BUDGET_FORECAST_STEP: u32 = 20;
+
 fn fresh(a: &TrainArgs, deadline: Deadline) -> Result<(), Failure> {
     // The background first: a wrong one must stop us before any work.
     let background = a.background.as_deref().map(|p| load_background(p, "--background")).transpose()?;
@@ -537,6 +540,22 @@ fn drive<M: ModelFile>(
         };
         let done = s.step + 1;
         let out_of_time = deadline.is_some_and(|(_, at)| Instant::now() >= at);
+        if let Some((seconds, at)) = deadline.filter(|_| done == BUDGET_FORECAST_STEP && done < cfg.steps) {
+            // Once, from the pace so far: whether the budget holds the run's steps.
+            let pace = s.seconds / done as f64;
+            let left = at.saturating_duration_since(Instant::now()).as_secs_f64();
+            let need = pace * (cfg.steps - done) as f64;
+            if need > left {
+                eprintln!(
+                    "rnerf train: at {:.0} ms a step the last {} steps need about {need:.0} s, and --budget {seconds} s \
+                     leaves {left:.0}: the run will stop near step {}; fewer --rays a step buy more steps \
+                     (RESULTS.md, \"A scene phase with a time budget\")",
+                    pace * 1e3,
+                    cfg.steps - done,
+                    done + (left / pace) as u32
+                );
+            }
+        }
         if done % 10 == 0 || done == cfg.steps || out_of_time {
             let psnr = -10.0 * (s.loss as f64).log10();
             let rays_per_s = done as f64 * cfg.rays_per_step as f64 / s.seconds.max(1e-9);
