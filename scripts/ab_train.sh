@@ -5,8 +5,9 @@
 # training seconds of each round (the trainer's own figure, the prior not included) and the
 # samples kept / evaluated per ray at the last step, then whether the two builds' models hold
 # the same tensors bit for bit (the metadata, such as the training seconds, aside). Run it
-# alone on the host, in its own autogroup (BENCHMARKS.md).
-# usage: scripts/ab_train.sh A_RNERF B_RNERF ROUNDS DEV_DIR BG_MODEL SCENE [SCENE ...]
+# alone on the host, in its own autogroup (BENCHMARKS.md). EXTRA: more `rnerf train` flags for
+# both builds (e.g. EXTRA="--rays 256").
+# usage: [EXTRA="..."] scripts/ab_train.sh A_RNERF B_RNERF ROUNDS DEV_DIR BG_MODEL SCENE [SCENE ...]
 #   (A_/B_RNERF: target/release/rnerf of each build, copied aside)
 set -euo pipefail
 a=$1 b=$2 rounds=$3 dev=$4 bg=$5; shift 5
@@ -16,7 +17,7 @@ for round in $(seq "$rounds"); do
     bin=$a; [ "$build" = B ] && bin=$b
     for scene in "$@"; do
       RNERF_CPU_LEVEL=${RNERF_CPU_LEVEL:-avx2} "$bin" train --data "$dev/$scene" --background "$bg" \
-        --background-data "$dev/background" --seed 0 --out "$out/${scene}_$build.safetensors" 2>&1 |
+        --background-data "$dev/background" --seed 0 ${EXTRA:-} --out "$out/${scene}_$build.safetensors" 2>&1 |
         tr '\r' '\n' > "$out/${scene}_${build}_$round.log"
       secs=$(grep -o 'wrote .* (\([0-9.]*\) s)' "$out/${scene}_${build}_$round.log" | grep -o '[0-9.]* s)' | tr -d ' s)')
       per_ray=$(grep -o '[0-9]*/[0-9]* samples/ray' "$out/${scene}_${build}_$round.log" | tail -1)

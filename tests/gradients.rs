@@ -236,6 +236,50 @@ proptest! {
             }
         }
     }
+
+    /// Adam leaves blocks whose gradient and moments are all zero alone after its first step
+    /// (a hash-table entry no sample has reached): the result is the full update's, bit for bit
+    /// (parameters, moments, mirror), on every level. Blocks of 64 start receiving gradients at a
+    /// random step or never, and then get zero gradients at some steps (their moments are not
+    /// zero then, so they must be updated).
+    #[test]
+    fn adams_idle_blocks_keep_the_full_updates_bits(seed in any::<u64>(), n in 0usize..700) {
+        use residual_nerf::train::adam::{step_kernel, AdamStep};
+        let mut rng = Rng::new(seed);
+        let cfg = AdamConfig::default();
+        let p0: Vec<f32> = (0..n).map(|_| rng.uniform(-1.0, 1.0)).collect();
+        let starts: Vec<usize> = (0..n.div_ceil(64)).map(|_| rng.uniform(0.0, 7.0) as usize).collect();
+        let grads: Vec<Vec<f32>> = (0..6)
+            .map(|t| {
+                (0..n)
+                    .map(|i| match t >= starts[i / 64] && rng.uniform(0.0, 1.0) < 0.6 {
+                        true => rng.uniform(-1.0, 1.0),
+                        false => 0.0,
+                    })
+                    .collect()
+            })
+            .collect();
+        let lr = 1e-2f32;
+        for isa in Isa::all() {
+            let mut adam = Adam::new(n, cfg.clone());
+            let (mut params, mut mirror) = (p0.clone(), vec![0u16; n]);
+            // The full update every step, the same kernel.
+            let (mut p, mut h, mut m, mut v) = (p0.clone(), vec![0u16; n], vec![0f32; n], vec![0f32; n]);
+            for (t, g) in grads.iter().enumerate() {
+                adam.step(isa, lr, &mut params, g, Some(&mut mirror));
+                let t = t as i32 + 1;
+                let (b1, b2) = (cfg.beta1 as f64, cfg.beta2 as f64);
+                let lr_t = (lr as f64 * (1.0 - b2.powi(t)).sqrt() / (1.0 - b1.powi(t))) as f32;
+                let hp = AdamStep { lr_t, beta1: cfg.beta1, beta2: cfg.beta2, epsilon: cfg.epsilon, l2: 0.0 };
+                step_kernel(isa, hp, &mut p, g, &mut m, &mut v, Some(&mut h));
+                let bits = |x: &[f32]| x.iter().map(|v| v.to_bits()).collect::<Vec<u32>>();
+                prop_assert_eq!(bits(&params), bits(&p), "{} parameters at step {}", isa, t);
+                prop_assert_eq!(&mirror, &h, "{} mirror at step {}", isa, t);
+                prop_assert_eq!(bits(adam.moments().0), bits(&m), "{} first moments at step {}", isa, t);
+                prop_assert_eq!(bits(adam.moments().1), bits(&v), "{} second moments at step {}", isa, t);
+            }
+        }
+    }
 }
 
 #[test]

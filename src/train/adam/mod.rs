@@ -59,15 +59,29 @@ pub struct Adam {
     m: Vec<f32>,
     v: Vec<f32>,
     t: u32,
+    /// Whether this optimiser has updated every parameter of its buffer since it was made or
+    /// restored, so the mirror holds `fp16(p)` everywhere and idle blocks may be left alone
+    /// ([`IDLE_BLOCK`]).
+    swept: bool,
 }
 
 /// Parameters per parallel task (the split never changes the result: the update is element-wise).
 const PAR_CHUNK: usize = 1 << 16;
 
+/// Parameters per idle test. A parameter whose gradient and both moments are exactly zero (a
+/// hash-table entry no sample has reached yet: most of a residual model's middle levels, whose
+/// change region is a small part of the room) is left as it is by the update, bits included
+/// (`m = v = 0`, `p − lr_t · 0 / (0 + ε) = p`, and the mirror already holds `fp16(p)`), so a
+/// block of them is skipped: its `p`, `m`, `v` and mirror are neither read back nor written.
+/// Only without L2 (whose `l2 · p` makes the gradient non-zero) and after a first full update
+/// (which makes the mirror `fp16(p)` everywhere). 64 parameters: a few cache lines of each
+/// buffer, checked in one pass.
+const IDLE_BLOCK: usize = 64;
+
 impl Adam {
     /// Zeroed moments for `n` parameters.
     pub fn new(n: usize, config: AdamConfig) -> Adam {
-        Adam { config, m: vec![0.0; n], v: vec![0.0; n], t: 0 }
+        Adam { config, m: vec![0.0; n], v: vec![0.0; n], t: 0, swept: false }
     }
 
     /// Steps taken so far.
@@ -86,6 +100,7 @@ impl Adam {
         self.m = m;
         self.v = v;
         self.t = t;
+        self.swept = false;
     }
 
     /// One update of `params` from `grads` at learning rate `lr`; when `mirror` is given
@@ -98,8 +113,11 @@ impl Adam {
         let t = self.t as i32;
         let lr_t = (lr as f64 * (1.0 - (c.beta2 as f64).powi(t)).sqrt() / (1.0 - (c.beta1 as f64).powi(t))) as f32;
         let hp = AdamStep { lr_t, beta1: c.beta1, beta2: c.beta2, epsilon: c.epsilon, l2: c.l2 };
-        let run = |p: &mut [f32], g: &[f32], m: &mut [f32], v: &mut [f32], h: Option<&mut [u16]>| {
-            step_kernel(isa, hp, p, g, m, v, h)
+        let skip_idle = self.swept && c.l2 == 0.0;
+        self.swept = true;
+        let run = |p: &mut [f32], g: &[f32], m: &mut [f32], v: &mut [f32], h: Option<&mut [u16]>| match skip_idle {
+            true => step_busy_blocks(isa, hp, p, g, m, v, h),
+            false => step_kernel(isa, hp, p, g, m, v, h),
         };
         let chunks = params
             .par_chunks_mut(PAR_CHUNK)
@@ -113,6 +131,41 @@ impl Adam {
             }
             None => chunks.for_each(|(((p, g), m), v)| run(p, g, m, v, None)),
         }
+    }
+}
+
+/// [`step_kernel`] on the runs of [`IDLE_BLOCK`]-parameter blocks that are not idle (some
+/// gradient or moment not exactly zero); idle blocks are left as they are, which is what the
+/// update would leave them when `l2` is 0 and the mirror holds `fp16(p)`.
+fn step_busy_blocks(
+    isa: Isa,
+    hp: AdamStep,
+    p: &mut [f32],
+    g: &[f32],
+    m: &mut [f32],
+    v: &mut [f32],
+    mut mirror: Option<&mut [u16]>,
+) {
+    let n = p.len();
+    let idle = |b: usize, m: &[f32], v: &[f32]| {
+        let r = b * IDLE_BLOCK..((b + 1) * IDLE_BLOCK).min(n);
+        let bits = |x: &[f32]| x.iter().fold(0u32, |acc, v| acc | v.to_bits());
+        bits(&g[r.clone()]) | bits(&m[r.clone()]) | bits(&v[r]) == 0
+    };
+    let blocks = n.div_ceil(IDLE_BLOCK);
+    let mut b = 0;
+    while b < blocks {
+        // A run of busy blocks, updated in one call; then the idle block that ended it.
+        let first = b;
+        while b < blocks && !idle(b, m, v) {
+            b += 1;
+        }
+        if b > first {
+            let r = first * IDLE_BLOCK..(b * IDLE_BLOCK).min(n);
+            let h = mirror.as_deref_mut().map(|h| &mut h[r.clone()]);
+            step_kernel(isa, hp, &mut p[r.clone()], &g[r.clone()], &mut m[r.clone()], &mut v[r], h);
+        }
+        b += 1;
     }
 }
 
