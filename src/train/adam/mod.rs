@@ -115,9 +115,32 @@ impl Adam {
         let hp = AdamStep { lr_t, beta1: c.beta1, beta2: c.beta2, epsilon: c.epsilon, l2: c.l2 };
         let skip_idle = self.swept && c.l2 == 0.0;
         self.swept = true;
-        let run = |p: &mut [f32], g: &[f32], m: &mut [f32], v: &mut [f32], h: Option<&mut [u16]>| match skip_idle {
-            true => step_busy_blocks(isa, hp, p, g, m, v, h),
-            false => step_kernel(isa, hp, p, g, m, v, h),
+        let run = |p: &mut [f32], g: &[f32], m: &mut [f32], v: &mut [f32], mut h: Option<&mut [u16]>| {
+            if !skip_idle {
+                return step_kernel(isa, hp, p, g, m, v, h);
+            }
+            // The kernel on each run of busy blocks (some gradient or moment not exactly zero);
+            // the idle block that ends a run is left as the update would leave it.
+            let n = p.len();
+            let idle = |b: usize, m: &[f32], v: &[f32]| {
+                let r = b * IDLE_BLOCK..((b + 1) * IDLE_BLOCK).min(n);
+                let bits = |x: &[f32]| x.iter().fold(0u32, |acc, v| acc | v.to_bits());
+                bits(&g[r.clone()]) | bits(&m[r.clone()]) | bits(&v[r]) == 0
+            };
+            let blocks = n.div_ceil(IDLE_BLOCK);
+            let mut b = 0;
+            while b < blocks {
+                let first = b;
+                while b < blocks && !idle(b, m, v) {
+                    b += 1;
+                }
+                if b > first {
+                    let r = first * IDLE_BLOCK..(b * IDLE_BLOCK).min(n);
+                    let h = h.as_deref_mut().map(|h| &mut h[r.clone()]);
+                    step_kernel(isa, hp, &mut p[r.clone()], &g[r.clone()], &mut m[r.clone()], &mut v[r], h);
+                }
+                b += 1;
+            }
         };
         let chunks = params
             .par_chunks_mut(PAR_CHUNK)
@@ -131,41 +154,6 @@ impl Adam {
             }
             None => chunks.for_each(|(((p, g), m), v)| run(p, g, m, v, None)),
         }
-    }
-}
-
-/// [`step_kernel`] on the runs of [`IDLE_BLOCK`]-parameter blocks that are not idle (some
-/// gradient or moment not exactly zero); idle blocks are left as they are, which is what the
-/// update would leave them when `l2` is 0 and the mirror holds `fp16(p)`.
-fn step_busy_blocks(
-    isa: Isa,
-    hp: AdamStep,
-    p: &mut [f32],
-    g: &[f32],
-    m: &mut [f32],
-    v: &mut [f32],
-    mut mirror: Option<&mut [u16]>,
-) {
-    let n = p.len();
-    let idle = |b: usize, m: &[f32], v: &[f32]| {
-        let r = b * IDLE_BLOCK..((b + 1) * IDLE_BLOCK).min(n);
-        let bits = |x: &[f32]| x.iter().fold(0u32, |acc, v| acc | v.to_bits());
-        bits(&g[r.clone()]) | bits(&m[r.clone()]) | bits(&v[r]) == 0
-    };
-    let blocks = n.div_ceil(IDLE_BLOCK);
-    let mut b = 0;
-    while b < blocks {
-        // A run of busy blocks, updated in one call; then the idle block that ended it.
-        let first = b;
-        while b < blocks && !idle(b, m, v) {
-            b += 1;
-        }
-        if b > first {
-            let r = first * IDLE_BLOCK..(b * IDLE_BLOCK).min(n);
-            let h = mirror.as_deref_mut().map(|h| &mut h[r.clone()]);
-            step_kernel(isa, hp, &mut p[r.clone()], &g[r.clone()], &mut m[r.clone()], &mut v[r], h);
-        }
-        b += 1;
     }
 }
 
