@@ -4,7 +4,7 @@
 # level (robots have AVX2 or NEON; override with RNERF_CPU_LEVEL), in its own autogroup.
 # usage: scripts/dev_compare.sh DEV_DIR BG_MODEL OUT_DIR [SEED] [VIEWS...]
 #   DEV_DIR   ../shared/data/dev (background/, glass_up/, bottle/, wine_flat/)
-#   BG_MODEL  the background: rnerf train --data DEV_DIR/background --out BG_MODEL
+#   BG_MODEL  the background: rnerf train --data DEV_DIR/background --out BG_MODEL --steps 3000
 #   VIEWS     scene training views, one run per value (default: 100)
 set -euo pipefail
 dev=$1 bg=$2 out=$3 seed=${4:-0}

@@ -83,9 +83,13 @@ fn compare_writes_the_table_curves_and_depth_sheets() {
         assert_eq!(sheet.width(), 7 * (160 + 4), "sheet {i}");
     }
     assert!(image::open(out.join("glass/curves.png")).is_ok());
-    // The trained background is kept for later runs (--background-model).
+    // The trained background is kept for later runs (--background-model), trained for three
+    // times the scenes' steps (it is trained once, offline).
     let model = out.join("background.safetensors");
-    assert!(model.is_file());
+    let bytes = std::fs::read(&model).unwrap();
+    let (_, meta) = safetensors::SafeTensors::read_metadata(&bytes).unwrap();
+    let steps = meta.metadata().as_ref().and_then(|m| m.get("train_steps").cloned());
+    assert_eq!(steps.as_deref(), Some("60"), "the background's steps: 3 × --steps 20");
     let out2 = dir.join("out2");
     run(&[
         "compare",
@@ -106,6 +110,20 @@ fn compare_writes_the_table_curves_and_depth_sheets() {
     ])
     .unwrap();
     assert!(!out2.join("background.safetensors").exists(), "a given background is not retrained");
+    let given = run(&[
+        "compare",
+        "--background",
+        bg_s,
+        "--background-model",
+        model.to_str().unwrap(),
+        "--background-steps",
+        "30",
+        "--scene",
+        scene_s,
+        "--out",
+        dir.join("out3").to_str().unwrap(),
+    ]);
+    assert_eq!(given.unwrap_err(), "--background-steps: the background is loaded from --background-model, not trained");
     // Without --rays each run draws its capture's count: 6 views of 16×16 take the floor, half
     // of the default.
     let doc: serde_json::Value = serde_json::from_slice(&std::fs::read(out2.join("table.json")).unwrap()).unwrap();

@@ -109,3 +109,24 @@ fn training_is_thread_count_independent() {
     assert!(e.params == f.params, "four rays per pixel: parameters differ between 1 and 2 threads");
     assert!(e.params != a.params && e.params != c.params, "the footprints changed no ray");
 }
+
+/// A config for other steps (the background's three times a scene's: `rnerf compare`, the
+/// demo) rescales its learning-rate schedule as a default config of those steps has it, and
+/// keeps its base rate and every other setting.
+#[test]
+fn a_rescheduled_config_scales_its_schedule_and_keeps_the_rest() {
+    use residual_nerf::train::trainer::{BACKGROUND_STEPS, TRAIN_STEPS};
+    let mut cfg = TrainConfig::with_steps(TRAIN_STEPS);
+    cfg.schedule.base = 3e-3;
+    cfg.rays_per_step = 256;
+    cfg.seed = 7;
+    let t = cfg.rescheduled(BACKGROUND_STEPS);
+    let want = TrainConfig::with_steps(BACKGROUND_STEPS).schedule;
+    assert_eq!(t.steps, 3 * TRAIN_STEPS);
+    assert_eq!(
+        (t.schedule.warmup_steps, t.schedule.decay_start, t.schedule.decay_interval, t.schedule.decay_factor),
+        (want.warmup_steps, want.decay_start, want.decay_interval, want.decay_factor)
+    );
+    assert_eq!(t.schedule.decay_start, 1800, "the decay from 60% of the steps");
+    assert_eq!((t.schedule.base, t.rays_per_step, t.seed), (3e-3, 256, 7));
+}

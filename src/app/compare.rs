@@ -63,6 +63,9 @@ fn scene_name(dir: &Path) -> String {
 
 pub(super) fn run(a: &crate::cli::CompareArgs) -> Result<(), String> {
     // Every input is read and checked before any training.
+    if a.background_model.is_some() && a.background_steps.is_some() {
+        return Err("--background-steps: the background is loaded from --background-model, not trained".into());
+    }
     let background = match &a.background_model {
         Some(p) => Background::Model(Box::new(load_background(p, "--background-model")?)),
         None => {
@@ -109,6 +112,7 @@ pub(super) fn run(a: &crate::cli::CompareArgs) -> Result<(), String> {
     train.pixel_rays = a.pixel_rays.unwrap_or(train.pixel_rays);
     let mut cfg = CompareConfig::new(train, NerfConfig { grid, aabb });
     cfg.eval_every = a.eval_every.unwrap_or(cfg.eval_every);
+    cfg.background_steps = a.background_steps.unwrap_or(cfg.background_steps);
     cfg.m = a.m;
     cfg.m_sweep = a.m_sweep.clone();
     cfg.prior = a.prior_settings.config();
@@ -134,7 +138,8 @@ pub(super) fn run(a: &crate::cli::CompareArgs) -> Result<(), String> {
         Background::Data(data) => {
             let nerf = train_background(isa, &data.views, &cfg)?;
             let path = a.out.join("background.safetensors");
-            save_nerf(&path, &nerf, &[("train_data", a.background.display().to_string())])?;
+            let steps = cfg.background_steps.to_string();
+            save_nerf(&path, &nerf, &[("train_data", a.background.display().to_string()), ("train_steps", steps)])?;
             eprintln!("rnerf compare: wrote {}", path.display());
             nerf
         }
@@ -145,8 +150,9 @@ pub(super) fn run(a: &crate::cli::CompareArgs) -> Result<(), String> {
 
 /// Trains the background NeRF with the comparison's settings, showing progress.
 pub fn train_background(isa: Isa, views: &[View], cfg: &CompareConfig) -> Result<Nerf, String> {
-    let mut progress = Progress::new("background", cfg.train.steps as u64);
-    train_nerf(isa, views, cfg.field.clone(), &cfg.train_for(views), 10, |s| {
+    let mut progress = Progress::new("background", cfg.background_steps as u64);
+    let train = cfg.train_for(views).rescheduled(cfg.background_steps);
+    train_nerf(isa, views, cfg.field.clone(), &train, 10, |s| {
         progress.update(s.step as u64 + 1, &format!("PSNR {:.2} dB", -10.0 * (s.loss as f64).log10()))
     })
     .map_err(|e| format!("background: {e}"))
@@ -305,7 +311,8 @@ pub(super) fn demo(out: &Path, steps: Option<u32>, size: Option<u32>, seed: Opti
     scene.write_split(&out.join("data/glass"), "train")?;
     test.write_split(&out.join("data/glass"), "test")?;
     eprintln!(
-        "rnerf demo: training the background, then Dex-NeRF and Residual-NeRF ({} steps each, cpu level {isa}, {} threads)",
+        "rnerf demo: training the background ({} steps), then Dex-NeRF and Residual-NeRF ({} steps each, cpu level {isa}, {} threads)",
+        cfg.background_steps,
         cfg.train.steps,
         rayon::current_num_threads()
     );

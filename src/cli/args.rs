@@ -218,6 +218,9 @@ pub struct CompareArgs {
     pub seed: Option<u64>,
     /// Steps between points of the speed curves (`--eval-every`).
     pub eval_every: Option<u32>,
+    /// Steps of the background's training when no `--background-model` is given
+    /// (`--background-steps`, default 3 × the steps).
+    pub background_steps: Option<u32>,
     /// Threshold of threshold depth (`--m`, `--m-raw`).
     pub m: crate::render::DensityThreshold,
     /// Further σ thresholds the final models are scored at (`--m-sweep`).

@@ -78,6 +78,7 @@ pub(super) const FLAGS: &[Flag] = &[
     Flag { name: "scene", commands: &["compare", "bench"], setting: false },
     Flag { name: "methods", commands: &["compare"], setting: false },
     Flag { name: "eval-every", commands: &["compare"], setting: false },
+    Flag { name: "background-steps", commands: &["compare"], setting: false },
     Flag { name: "m-sweep", commands: &["compare"], setting: false },
     Flag { name: "size", commands: &["demo"], setting: false },
     Flag { name: "images", commands: &["import"], setting: false },
@@ -128,6 +129,7 @@ pub(super) struct Flags {
     pub(super) scenes: Vec<PathBuf>,
     pub(super) methods: Option<Vec<crate::compare::Method>>,
     pub(super) eval_every: Option<u32>,
+    pub(super) background_steps: Option<u32>,
     pub(super) checkpoint_every: Option<u32>,
     pub(super) budget: Option<f64>,
     pub(super) resume: Option<PathBuf>,
@@ -376,6 +378,7 @@ impl Flags {
             "background-model" => self.background_model = Some(path(p, name)?),
             "scene" => self.scenes.push(path(p, name)?),
             "eval-every" => self.eval_every = Some(positive(p, name)?),
+            "background-steps" => self.background_steps = Some(positive(p, name)?),
             "methods" => {
                 let s = text(p, name)?;
                 let mut methods = Vec::new();

@@ -156,6 +156,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             log2t: f.log2t,
             seed: f.seed,
             eval_every: f.eval_every,
+            background_steps: f.background_steps,
             m: f.depth()?.threshold(),
             m_sweep: f.m_sweep.clone().unwrap_or_else(|| {
                 DEFAULT_M_SWEEP.iter().map(|&v| crate::render::DensityThreshold::Sigma(v)).collect()

@@ -12,7 +12,8 @@ commands:
          [--exposure-correction on|off] [--pose-registration on|off]] [--pose-registration on [--registration-passes N]]
          [--image-gains on|off] [--error-map S|off] [--pixel-jitter on|off] [--pixel-rays K] [--checkpoint-every N]
          [--scene-views N] [--budget SECONDS]
-         train a NeRF on DIR's transforms_<split>.json (default split: train); with --background,
+         train a NeRF on DIR's transforms_<split>.json (default split: train; --steps default
+         1000; a background, the empty workspace trained once, takes --steps 3000); with --background,
          a Residual-NeRF (residual + Mixnet over the frozen background; --mix sum: Residual-NeRF-S),
          by default background-aware (--prior all: start at the background, a change region voted
          from change maps against BG_DIR's images at the same poses or the rendered background,
@@ -65,11 +66,13 @@ commands:
          from the box)
   compare --background DIR --scene DIR [--scene DIR ...] --out DIR [--background-model MODEL]
          [--methods dex,finetune,residual-paper,residual,...] [--scene-views N] [--steps N] [--rays N]
-         [--log2t N] [--seed S] [--eval-every N] [--m M | --m-raw S] [--m-sweep M,M,...] [--threads N]
+         [--log2t N] [--seed S] [--eval-every N] [--background-steps N] [--m M | --m-raw S] [--m-sweep M,M,...] [--threads N]
          [--beta U,E] [--beta-margin N] [--region-floor S|off] [--focus-share F] [--region-vote V,S] [--region-dilate N] [--change-tolerance T[,R]]
          [--frozen-stride N] [--frozen-tail T] [--frozen-coarse T,N|off] [--photo-tail on|off] [--ray-pool N] [--exposure-correction on|off] [--pose-registration on|off]
          [--image-gains on|off] [--pixel-jitter on|off] [--pixel-rays K]
          (--rays: every run's rays per step, default each run's own capture's as for train;
+         --background-steps: the background's training steps when no --background-model is
+         given, default 3 x --steps (it is trained once, offline; 3000 at the defaults);
          --m-sweep: also score the final models at these σ thresholds, default 3,10,20,40;
          --beta: weights of the background-aware methods' β penalty and entropy;
          --beta-margin: pixels around the changed ones the β penalty spares, default 2;

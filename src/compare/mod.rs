@@ -234,15 +234,21 @@ pub struct CompareConfig {
     /// [`TrainConfig::rays_for_views`] of its own training set a step instead of
     /// `train.rays_per_step` (what `rnerf compare` does without `--rays`): [`Self::train_for`].
     pub capture_rays: bool,
+    /// Steps of the background's training when the comparison trains it
+    /// ([`crate::app::train_background`]; `--background-steps`), by default
+    /// [`BACKGROUND_STEP_FACTOR`](crate::train::trainer::BACKGROUND_STEP_FACTOR) × `train.steps`.
+    pub background_steps: u32,
 }
 
 impl CompareConfig {
     /// `train` and `field` with every other setting at its default: the Mixnet's default grid,
     /// threshold depth at [`DensityThreshold::DEFAULT`], no `m` sweep, the prior's defaults,
-    /// models not saved, curve points every 1/20 of the steps.
+    /// models not saved, curve points every 1/20 of the steps, the background trained for
+    /// [`BACKGROUND_STEP_FACTOR`](crate::train::trainer::BACKGROUND_STEP_FACTOR) times the steps.
     pub fn new(train: TrainConfig, field: NerfConfig) -> CompareConfig {
         CompareConfig {
             eval_every: (train.steps / 20).max(1),
+            background_steps: crate::train::trainer::BACKGROUND_STEP_FACTOR * train.steps,
             train,
             field,
             mixnet_grid: crate::field::mixnet::default_mixnet_grid(),
