@@ -6,15 +6,18 @@
 # samples kept / evaluated per ray at the last step, then whether the two builds' models hold
 # the same tensors bit for bit (the metadata, such as the training seconds, aside). Run it
 # alone on the host, in its own autogroup (BENCHMARKS.md). EXTRA: more `rnerf train` flags for
-# both builds (e.g. EXTRA="--rays 256").
-# usage: [EXTRA="..."] scripts/ab_train.sh A_RNERF B_RNERF ROUNDS DEV_DIR BG_MODEL SCENE [SCENE ...]
+# both builds (e.g. EXTRA="--rays 256"). BG_B: the background build B trains over (default
+# BG_MODEL); with the same binary as A and B, one build over two backgrounds (whose models then
+# differ, as they should).
+# usage: [EXTRA="..."] [BG_B=MODEL] scripts/ab_train.sh A_RNERF B_RNERF ROUNDS DEV_DIR BG_MODEL SCENE [SCENE ...]
 #   (A_/B_RNERF: target/release/rnerf of each build, copied aside)
 set -euo pipefail
-a=$1 b=$2 rounds=$3 dev=$4 bg=$5; shift 5
+a=$1 b=$2 rounds=$3 dev=$4 bg_a=$5; shift 5
+bg_b=${BG_B:-$bg_a}
 out=$(mktemp -d)
 for round in $(seq "$rounds"); do
   for build in A B; do
-    bin=$a; [ "$build" = B ] && bin=$b
+    bin=$a bg=$bg_a; [ "$build" = B ] && bin=$b bg=$bg_b
     for scene in "$@"; do
       RNERF_CPU_LEVEL=${RNERF_CPU_LEVEL:-avx2} "$bin" train --data "$dev/$scene" --background "$bg" \
         --background-data "$dev/background" --seed 0 ${EXTRA:-} --out "$out/${scene}_$build.safetensors" 2>&1 |
