@@ -247,6 +247,18 @@ pub fn rays_for_capture(pixels: u64, pixel_rays: u32) -> usize {
     rays - rays % k
 }
 
+/// The default learning-rate schedule of a `steps`-step run from `base`: step decay ×0.33 from
+/// 60% of the steps, every 15% of them ([`TrainConfig::with_steps`], [`TrainConfig::rescheduled`]).
+fn schedule_for(steps: u32, base: f32) -> LrSchedule {
+    LrSchedule {
+        base,
+        warmup_steps: 0,
+        decay_start: steps * 3 / 5,
+        decay_interval: (steps * 3 / 20).max(1),
+        decay_factor: 0.33,
+    }
+}
+
 impl TrainConfig {
     /// [`rays_for_capture`] of the training set `views` (their width × height summed) at this
     /// config's [`Self::pixel_rays`]: what the command line sets [`Self::rays_per_step`] to
@@ -265,11 +277,7 @@ impl TrainConfig {
     /// This config for `steps` steps: the learning-rate schedule rescaled as
     /// [`Self::with_steps`] scales it (its base rate kept), everything else as it is.
     pub fn rescheduled(&self, steps: u32) -> TrainConfig {
-        let mut t = self.clone();
-        let base = t.schedule.base;
-        t.steps = steps;
-        t.schedule = LrSchedule { base, ..TrainConfig::with_steps(steps).schedule };
-        t
+        TrainConfig { steps, schedule: schedule_for(steps, self.schedule.base), ..self.clone() }
     }
 
     /// The defaults (what `rnerf train` does for images without alpha) for `steps` steps: the
@@ -278,13 +286,7 @@ impl TrainConfig {
         TrainConfig {
             steps,
             rays_per_step: TRAIN_RAYS,
-            schedule: LrSchedule {
-                base: 1e-2,
-                warmup_steps: 0,
-                decay_start: steps * 3 / 5,
-                decay_interval: (steps * 3 / 20).max(1),
-                decay_factor: 0.33,
-            },
+            schedule: schedule_for(steps, 1e-2),
             occupancy_interval: 16,
             occupancy: OccupancyConfig::default(),
             background: [1.0; 3],
