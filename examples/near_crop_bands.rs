@@ -22,7 +22,7 @@
 //! ```
 
 use residual_nerf::data::dataset::{Dataset, LoadOptions};
-use residual_nerf::eval::{DepthErrors, NEAR_LIMIT};
+use residual_nerf::eval::{mask_distance, DepthErrors, NEAR_LIMIT};
 use residual_nerf::field::model::Model;
 use residual_nerf::io::{load_model, LoadedModel};
 use residual_nerf::render::view::Scene;
@@ -42,37 +42,6 @@ fn label(b: usize) -> String {
     }
 }
 
-/// Chessboard distance of every pixel to the nearest mask pixel (two-pass chamfer).
-fn distance(mask: &[bool], w: usize, h: usize) -> Vec<u32> {
-    let inf = u32::MAX / 2;
-    let mut d: Vec<u32> = mask.iter().map(|&m| if m { 0 } else { inf }).collect();
-    for y in 0..h {
-        for x in 0..w {
-            let mut v = d[y * w + x];
-            for (dx, dy) in [(-1i64, 0i64), (-1, -1), (0, -1), (1, -1)] {
-                let (nx, ny) = (x as i64 + dx, y as i64 + dy);
-                if nx >= 0 && ny >= 0 && (nx as usize) < w {
-                    v = v.min(d[ny as usize * w + nx as usize] + 1);
-                }
-            }
-            d[y * w + x] = v;
-        }
-    }
-    for y in (0..h).rev() {
-        for x in (0..w).rev() {
-            let mut v = d[y * w + x];
-            for (dx, dy) in [(1i64, 0i64), (1, 1), (0, 1), (-1, 1)] {
-                let (nx, ny) = (x as i64 + dx, y as i64 + dy);
-                if nx >= 0 && (nx as usize) < w && (ny as usize) < h {
-                    v = v.min(d[ny as usize * w + nx as usize] + 1);
-                }
-            }
-            d[y * w + x] = v;
-        }
-    }
-    d
-}
-
 /// The bands, then the 1-px ring by the side its mask neighbour lies on (left, right, above,
 /// below; a pixel with several counts on each).
 fn bands<M: Model>(isa: Isa, scene: &Scene<'_, M>, test: &Dataset) -> (Vec<DepthErrors>, [DepthErrors; 4]) {
@@ -85,7 +54,7 @@ fn bands<M: Model>(isa: Isa, scene: &Scene<'_, M>, test: &Dataset) -> (Vec<Depth
         let (w, h) = (k.width as usize, k.height as usize);
         let mut z = vec![0.0; w * h];
         renderer.depth(isa, scene, k, &v.pose, DensityThreshold::Sigma(10.0), &mut z);
-        let dist = distance(mask, w, h);
+        let dist = mask_distance(mask, w, h);
         for y in crop[1] as usize..crop[3] as usize {
             for x in crop[0] as usize..crop[2] as usize {
                 let p = y * w + x;
@@ -151,7 +120,7 @@ fn image_profile(bg_dir: &str, scenes: &[String]) -> Result<(), String> {
                 continue;
             };
             let mask = f.mask.as_ref().ok_or_else(|| format!("{dir}: test frame {} has no mask", f.index))?;
-            let dist = distance(mask, v.intrinsics.width as usize, v.intrinsics.height as usize);
+            let dist = mask_distance(mask, v.intrinsics.width as usize, v.intrinsics.height as usize);
             for (p, (s, c)) in v.rgb.iter().zip(&b.rgb).enumerate() {
                 let band = BANDS.iter().position(|&e| dist[p] <= e).unwrap_or(BANDS.len());
                 diffs[band].push((0..3).map(|i| (s[i] - c[i]).abs()).fold(0.0, f32::max));

@@ -224,7 +224,8 @@ fn the_librarys_scene_phase_trains_the_command_lines_model() {
     let demo = residual_nerf::app::demo_config(150, 0);
     let background = train_nerf(isa, &bg.views, demo.field.clone(), &demo.train, 0, |_| {}).unwrap();
     let bg_model = dir.join("bg.safetensors");
-    save_nerf(&bg_model, &background, &[]).unwrap();
+    // Its file says it trained 100 steps, fewer than 3 x the scene phase's 40: the run notes it.
+    save_nerf(&bg_model, &background, &[("train_steps", "100".into())]).unwrap();
     bg.write_split(&bg_dir, "train").unwrap();
     workspace::workspace(32, 16, 0.0, true).write_split(&scene_dir, "train").unwrap();
     let out = dir.join("cli.safetensors");
@@ -246,6 +247,8 @@ fn the_librarys_scene_phase_trains_the_command_lines_model() {
     ];
     let o = rnerf(&args).output().unwrap();
     assert!(o.status.success(), "{}", stderr(&o));
+    let note = "trained 100 steps, fewer than 3 x this scene phase's 40; one trained 120 steps";
+    assert!(stderr(&o).contains(note), "no note on the short background: {}", stderr(&o));
     // The images as `rnerf train` reads them, and its settings for this capture.
     let opts = LoadOptions { ground_truth: false, ..Default::default() };
     let (bg_data, scene) =

@@ -1,7 +1,7 @@
 //! `rnerf compare` (the paper's protocol on a dataset) and `rnerf demo` (the same on a
 //! synthesised workspace): both end in [`compare_and_write`].
 
-use super::train::{adopt_background_box, load_background, trainer_settings};
+use super::train::{adopt_background_box, background_steps_note, load_background, trainer_settings};
 use super::Progress;
 use crate::compare::{self, CompareConfig, EvalSet, Method, SceneResult};
 use crate::data::workspace::{self, SKY};
@@ -52,7 +52,8 @@ fn load_scene(dir: &Path, bg_box: Aabb, bg_path: &Path) -> Result<(Dataset, Eval
 
 /// The background of a comparison: a given model, or the dataset to train it on.
 enum Background {
-    Model(Box<Nerf>),
+    /// Loaded, with the steps its file says it trained for.
+    Model(Box<Nerf>, Option<u32>),
     Data(Dataset),
 }
 
@@ -67,7 +68,10 @@ pub(super) fn run(a: &crate::cli::CompareArgs) -> Result<(), String> {
         return Err("--background-steps: the background is loaded from --background-model, not trained".into());
     }
     let background = match &a.background_model {
-        Some(p) => Background::Model(Box::new(load_background(p, "--background-model")?)),
+        Some(p) => {
+            let b = load_background(p, "--background-model")?;
+            Background::Model(Box::new(b.nerf), b.train_steps)
+        }
         None => {
             let opts =
                 LoadOptions { ground_truth: false, frame_type: Some(FrameType::Background), ..Default::default() };
@@ -75,11 +79,11 @@ pub(super) fn run(a: &crate::cli::CompareArgs) -> Result<(), String> {
         }
     };
     let aabb = match &background {
-        Background::Model(m) => m.field.config().aabb,
+        Background::Model(m, _) => m.field.config().aabb,
         Background::Data(d) => d.aabb,
     };
     let bg_views = match &background {
-        Background::Model(_) => background_views(&a.background),
+        Background::Model(..) => background_views(&a.background),
         Background::Data(d) => d.views.clone(),
     };
     let mut scenes = Vec::new();
@@ -134,7 +138,13 @@ pub(super) fn run(a: &crate::cli::CompareArgs) -> Result<(), String> {
         rayon::current_num_threads()
     );
     let background = match background {
-        Background::Model(m) => *m,
+        Background::Model(m, trained) => {
+            let path = a.background_model.as_deref().expect("a loaded background has its path");
+            if let Some(note) = background_steps_note(path, trained, cfg.train.steps) {
+                eprintln!("rnerf compare: {note}");
+            }
+            *m
+        }
         Background::Data(data) => {
             let nerf = train_background(isa, &data.views, &cfg)?;
             let path = a.out.join("background.safetensors");

@@ -9,12 +9,15 @@ use crate::field::mix::{DensityMix, MixKind};
 use crate::field::residual::{ResidualConfig, ResidualModel};
 use crate::field::{Nerf, NerfConfig, NerfField};
 use crate::files::write_atomic;
-use crate::io::{load_checkpoint, load_model, save_checkpoint, save_model, views_fingerprint, LoadedModel, ModelFile};
+use crate::io::model::{read_model_bytes, ModelReader};
+use crate::io::{
+    load_checkpoint, model_from_bytes, save_checkpoint, save_model, views_fingerprint, LoadedModel, ModelFile,
+};
 use crate::render::{Aabb, Pose};
 use crate::simd::Isa;
 use crate::train::prior::{residual_start, scene_prior, ColourCorrection, Prior};
 use crate::train::register::{registration_passes, Registration};
-use crate::train::trainer::{TrainConfig, Trainer};
+use crate::train::trainer::{TrainConfig, Trainer, BACKGROUND_STEP_FACTOR};
 use signal_hook::consts::{SIGINT, SIGTERM};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -44,14 +47,40 @@ pub(super) fn trainer_settings(
     (grid, cfg)
 }
 
+/// A frozen background model as `rnerf train --background` and `rnerf compare
+/// --background-model` load it.
+pub(super) struct LoadedBackground {
+    pub nerf: Nerf,
+    /// The steps it trained for, when its file records them (`train_steps`, which `rnerf
+    /// train` and `rnerf compare` write).
+    pub train_steps: Option<u32>,
+}
+
 /// Loads the frozen background model at `path` (given with `flag`): a plain NeRF.
-pub(super) fn load_background(path: &Path, flag: &str) -> Result<Nerf, String> {
-    match load_model(path).map_err(|e| format!("{flag}: {e}"))? {
-        LoadedModel::Nerf(n) => Ok(*n),
+pub(super) fn load_background(path: &Path, flag: &str) -> Result<LoadedBackground, String> {
+    let bytes = read_model_bytes(path).map_err(|e| format!("{flag}: {e}"))?;
+    let model = model_from_bytes(&bytes).map_err(|e| format!("{flag}: {}", e.context(path.display())))?;
+    let train_steps = ModelReader::parse(&bytes).ok().and_then(|r| r.metadata().get("train_steps")?.parse().ok());
+    match model {
+        LoadedModel::Nerf(n) => Ok(LoadedBackground { nerf: *n, train_steps }),
         LoadedModel::Residual(_) => {
             Err(format!("{}: {flag}: a residual model; expected a plain NeRF of the empty workspace", path.display()))
         }
     }
+}
+
+/// A one-line note when the background at `path` trained for fewer than
+/// [`BACKGROUND_STEP_FACTOR`] × `scene_steps` steps (the protocol of docs/DECISIONS.md, "The
+/// background trains for three times a scene's steps"): a sharper background gives better
+/// depth of the glass. None when it did, or when its file does not say.
+pub(super) fn background_steps_note(path: &Path, trained: Option<u32>, scene_steps: u32) -> Option<String> {
+    let wanted = BACKGROUND_STEP_FACTOR.saturating_mul(scene_steps);
+    let trained = trained.filter(|&t| t < wanted)?;
+    Some(format!(
+        "note: the background {} trained {trained} steps, fewer than {BACKGROUND_STEP_FACTOR} x this scene phase's \
+         {scene_steps}; one trained {wanted} steps (rnerf train --steps {wanted}) gives better depth of the glass",
+        path.display()
+    ))
 }
 
 /// Gives `data` the background model's scene box `bg_box`; a dataset whose own `aabb` differs
@@ -137,7 +166,7 @@ fn fresh(a: &TrainArgs, deadline: Deadline) -> Result<(), Failure> {
     let background = a.background.as_deref().map(|p| load_background(p, "--background")).transpose()?;
     let mut data = load_data(a)?;
     if let (Some(bg), Some(p)) = (&background, &a.background) {
-        adopt_background_box(&mut data, bg.field.config().aabb, p)?;
+        adopt_background_box(&mut data, bg.nerf.field.config().aabb, p)?;
     }
     if let Some(n) = a.scene_views {
         data.views = crate::data::evenly_spaced(&data.views, n);
@@ -166,6 +195,10 @@ fn fresh(a: &TrainArgs, deadline: Deadline) -> Result<(), Failure> {
     describe_run(&cfg, field.grid.log2_table_size, isa);
     match (background, &a.background) {
         (Some(bg), Some(bg_path)) => {
+            if let Some(note) = background_steps_note(bg_path, bg.train_steps, cfg.steps) {
+                eprintln!("rnerf train: {note}");
+            }
+            let bg = bg.nerf;
             let kind = a.mix.unwrap_or(MixKind::Mixnet(DensityMix::Raw));
             let mixnet = a.mixnet.unwrap_or_default();
             let hints = a.prior.unwrap_or(match kind {
@@ -628,6 +661,18 @@ fn drive<M: ModelFile>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The note on a background trained for fewer than three times the scene phase's steps:
+    /// there below the protocol, silent at or above it and when the file does not say.
+    #[test]
+    fn a_background_short_of_three_times_the_scene_steps_is_noted() {
+        let p = Path::new("bg.safetensors");
+        let note = background_steps_note(p, Some(1000), 1000).expect("1000 < 3 x 1000");
+        assert!(note.contains("bg.safetensors trained 1000 steps") && note.contains("--steps 3000"), "{note}");
+        assert_eq!(background_steps_note(p, Some(3000), 1000), None);
+        assert_eq!(background_steps_note(p, Some(1800), 600), None);
+        assert_eq!(background_steps_note(p, None, 1000), None);
+    }
 
     /// A resumed run applies the corrections its checkpoint records: the same images as the
     /// fresh run trained on, so the views' fingerprint matches.

@@ -218,6 +218,36 @@ impl DepthReport {
     }
 }
 
+/// Chessboard distance, in pixels, of every pixel of a `w × h` image to the nearest pixel of
+/// `mask` (0 on the mask; `u32::MAX / 2` everywhere when the mask is empty): two chamfer
+/// passes. The analysis examples bin a near crop's pixels by it (`near_crop_bands`,
+/// `far_floaters`).
+pub fn mask_distance(mask: &[bool], w: usize, h: usize) -> Vec<u32> {
+    assert_eq!(mask.len(), w * h, "eval: mask of {} pixels for a {w}x{h} image", mask.len());
+    let mut d: Vec<u32> = mask.iter().map(|&m| if m { 0 } else { u32::MAX / 2 }).collect();
+    let mut relax = |x: usize, y: usize, neighbours: [(i64, i64); 4]| {
+        let mut v = d[y * w + x];
+        for (dx, dy) in neighbours {
+            let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+            if nx >= 0 && ny >= 0 && (nx as usize) < w && (ny as usize) < h {
+                v = v.min(d[ny as usize * w + nx as usize] + 1);
+            }
+        }
+        d[y * w + x] = v;
+    };
+    for y in 0..h {
+        for x in 0..w {
+            relax(x, y, [(-1, 0), (-1, -1), (0, -1), (1, -1)]);
+        }
+    }
+    for y in (0..h).rev() {
+        for x in (0..w).rev() {
+            relax(x, y, [(1, 0), (1, 1), (0, 1), (-1, 1)]);
+        }
+    }
+    d
+}
+
 /// Mean squared error of two images over all pixels and channels.
 pub fn mse(pred: &[[f32; 3]], truth: &[[f32; 3]]) -> f64 {
     assert_eq!(pred.len(), truth.len(), "eval: images differ in size");
@@ -229,4 +259,24 @@ pub fn mse(pred: &[[f32; 3]], truth: &[[f32; 3]]) -> f64 {
 /// PSNR (dB) of an MSE on [0, 1] values.
 pub fn psnr(mse: f64) -> f64 {
     -10.0 * mse.log10()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Against the brute-force chessboard distance on a mask of two blobs and a stray pixel.
+    #[test]
+    fn mask_distance_is_the_chessboard_distance_to_the_nearest_mask_pixel() {
+        let (w, h) = (13, 9);
+        let on = [(2, 2), (3, 2), (2, 3), (9, 6), (10, 6), (10, 7), (12, 0)];
+        let mask: Vec<bool> = (0..w * h).map(|p| on.contains(&(p % w, p / w))).collect();
+        let d = mask_distance(&mask, w, h);
+        for p in 0..w * h {
+            let (x, y) = ((p % w) as i64, (p / w) as i64);
+            let brute = on.iter().map(|&(a, b)| (a as i64 - x).abs().max((b as i64 - y).abs())).min().unwrap();
+            assert_eq!(d[p] as i64, brute, "pixel ({x}, {y})");
+        }
+        assert!(mask_distance(&[false; 6], 3, 2).iter().all(|&v| v == u32::MAX / 2));
+    }
 }
