@@ -80,7 +80,7 @@ commands:
          least S before training (σ = e^S per metre), default off;
          --focus-share: share of each step's rays drawn from changed pixels, default 0.5;
          --region-vote: a cell is in the change region when at least S of all views see it and
-         at least V of those see a change there, default 0.5,0.25;
+         at least V of those see a change there, default 0.75,0.25;
          --region-dilate: cells the voted region grows by, default 1;
          --change-tolerance: colour difference (0-1, of 3x3-filtered colours) above which a
          scene pixel changed against a background image at its pose (T, default 0.03; 0.05 for
