@@ -6,11 +6,14 @@
 //! share of its pixels whose colour differs from the background's test image at the same pose
 //! by more than the change maps' tolerance (where one exists), and for the worse pixels whether
 //! the residual's hit lies in the change region, and in the region as voted before its one-cell
-//! dilation (the vote's core, recomputed from the training images), and how far in front of the
-//! truth it lies.
+//! dilation (the vote's core, recomputed from the training images at VOTE, the share of the
+//! seeing views that must see a change: the vote the model trained with, by default
+//! [`PriorConfig::vote`]'s default), and how far in front of the
+//! truth it lies; then the whole near crop's RMSE, the worse pixels' share of its squared error,
+//! and its RMSE had those pixels the background's depth.
 //!
 //! ```text
-//! cargo run --release --example far_floaters -- RESIDUAL_MODEL SCENE_DIR BACKGROUND_MODEL BACKGROUND_DIR
+//! cargo run --release --example far_floaters -- RESIDUAL_MODEL SCENE_DIR BACKGROUND_MODEL BACKGROUND_DIR [VOTE]
 //! ```
 
 use residual_nerf::data::dataset::{Dataset, LoadOptions};
@@ -45,8 +48,11 @@ fn load(dir: &str, split: &str, ground_truth: bool) -> Result<Dataset, String> {
 
 fn main() -> Result<(), String> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let [model, scene_dir, bg_model, bg_dir] = &args[..] else {
-        return Err("usage: far_floaters RESIDUAL_MODEL SCENE_DIR BACKGROUND_MODEL BACKGROUND_DIR".into());
+    let usage = "usage: far_floaters RESIDUAL_MODEL SCENE_DIR BACKGROUND_MODEL BACKGROUND_DIR [VOTE]";
+    let (model, scene_dir, bg_model, bg_dir, vote) = match &args[..] {
+        [m, s, b, d] => (m, s, b, d, PriorConfig::default().vote),
+        [m, s, b, d, v] => (m, s, b, d, v.parse().map_err(|_| format!("VOTE '{v}' is not a share"))?),
+        _ => return Err(usage.into()),
     };
     let isa = Isa::detect();
     let LoadedModel::Residual(res) = load_model(Path::new(model)).map_err(|e| e.to_string())? else {
@@ -58,7 +64,7 @@ fn main() -> Result<(), String> {
     let region = res.field.region().ok_or(format!("{model}: no change region"))?.clone();
     let (test, bg_test) = (load(scene_dir, "test", true)?, load(bg_dir, "test", true)?);
     let (train, bg_train) = (load(scene_dir, "train", false)?, load(bg_dir, "train", false)?);
-    let pcfg = PriorConfig { region_dilate: 0, ..Default::default() };
+    let pcfg = PriorConfig { region_dilate: 0, vote, ..Default::default() };
     let sky = TrainConfig::default().background;
     let core = scene_prior(isa, &bg, &bg_train.views, &train.views, sky, DensityThreshold::DEFAULT, &pcfg).region;
     let (rs, bs) = (Scene::from(&*res), Scene::from(&*bg));
@@ -66,6 +72,8 @@ fn main() -> Result<(), String> {
     let (mut worse, mut rest) = (Group::default(), Group::default());
     let (mut in_region, mut in_core) = (0usize, 0usize);
     let mut offsets: Vec<f32> = Vec::new();
+    // The whole near crop (the mask and every band): its squared error and pixels.
+    let (mut near_sq, mut near_pixels) = (0f64, 0usize);
     for (v, f) in test.views.iter().zip(&test.frames) {
         let k = &v.intrinsics;
         let (Some(truth), Some(crop), Some(mask)) = (&f.depth, f.crop, f.mask.as_deref()) else { continue };
@@ -79,13 +87,19 @@ fn main() -> Result<(), String> {
             for x in crop[0] as usize..crop[2] as usize {
                 let p = y * w + x;
                 let t = truth[p];
-                if !(t.is_finite() && t > 0.0 && t < NEAR_LIMIT) || dist[p] < FROM_PX {
+                if !(t.is_finite() && t > 0.0 && t < NEAR_LIMIT) {
                     continue;
                 }
                 // Holes count as depth 0, as `rnerf eval` scores them.
                 let err = |z: f32| if z.is_finite() { z - t } else { -t };
                 let (er, eb) = (err(zr[p]), err(zb[p]));
-                let g = if er.abs() > eb.abs() + GROSS_ERROR { &mut worse } else { &mut rest };
+                near_sq += (er * er) as f64;
+                near_pixels += 1;
+                if dist[p] < FROM_PX {
+                    continue;
+                }
+                let is_worse = er.abs() > eb.abs() + GROSS_ERROR;
+                let g = if is_worse { &mut worse } else { &mut rest };
                 g.pixels += 1;
                 g.sq_residual += (er * er) as f64;
                 g.sq_background += (eb * eb) as f64;
@@ -94,7 +108,7 @@ fn main() -> Result<(), String> {
                     let diff = (0..3).map(|i| (v.rgb[p][i] - img[p][i]).abs()).fold(0.0, f32::max);
                     g.changed += (diff > CHANGE_TOLERANCE) as usize;
                 }
-                if er.abs() > eb.abs() + GROSS_ERROR {
+                if is_worse {
                     offsets.push(er);
                     if zr[p].is_finite() {
                         let ray = pixel_ray(k, &v.pose, x as u32, y as u32);
@@ -122,10 +136,18 @@ fn main() -> Result<(), String> {
             g.with_image
         );
     }
+    let kept = near_sq - worse.sq_residual + worse.sq_background;
+    println!(
+        "near crop: RMSE {:.4} m; the worse pixels hold {:.1}% of its squared error; with the background's depth there {:.4} m",
+        (near_sq / near_pixels.max(1) as f64).sqrt(),
+        100.0 * worse.sq_residual / near_sq,
+        (kept / near_pixels.max(1) as f64).sqrt()
+    );
     offsets.sort_by(f32::total_cmp);
     let q = |f: f64| offsets.get(((offsets.len().max(1) - 1) as f64 * f) as usize).copied().unwrap_or(f32::NAN);
     println!(
-        "worse pixels: hit in the region {in_region}, in its core {in_core}; residual depth − truth: 10th / 50th / 90th percentile {:.3} / {:.3} / {:.3} m",
+        "worse pixels: hit in the region {in_region}, in its core {in_core} ({:.1}%); residual depth − truth: 10th / 50th / 90th percentile {:.3} / {:.3} / {:.3} m",
+        100.0 * in_core as f64 / worse.pixels.max(1) as f64,
         q(0.1),
         q(0.5),
         q(0.9)

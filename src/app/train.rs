@@ -9,10 +9,8 @@ use crate::field::mix::{DensityMix, MixKind};
 use crate::field::residual::{ResidualConfig, ResidualModel};
 use crate::field::{Nerf, NerfConfig, NerfField};
 use crate::files::write_atomic;
-use crate::io::model::{read_model_bytes, ModelReader};
-use crate::io::{
-    load_checkpoint, model_from_bytes, save_checkpoint, save_model, views_fingerprint, LoadedModel, ModelFile,
-};
+use crate::io::model::{model_from_reader, read_model_bytes, ModelReader};
+use crate::io::{load_checkpoint, save_checkpoint, save_model, views_fingerprint, LoadedModel, ModelFile};
 use crate::render::{Aabb, Pose};
 use crate::simd::Isa;
 use crate::train::prior::{residual_start, scene_prior, ColourCorrection, Prior};
@@ -59,9 +57,10 @@ pub(super) struct LoadedBackground {
 /// Loads the frozen background model at `path` (given with `flag`): a plain NeRF.
 pub(super) fn load_background(path: &Path, flag: &str) -> Result<LoadedBackground, String> {
     let bytes = read_model_bytes(path).map_err(|e| format!("{flag}: {e}"))?;
-    let model = model_from_bytes(&bytes).map_err(|e| format!("{flag}: {}", e.context(path.display())))?;
-    let train_steps = ModelReader::parse(&bytes).ok().and_then(|r| r.metadata().get("train_steps")?.parse().ok());
-    match model {
+    let in_file = |e: crate::error::Error| format!("{flag}: {}", e.context(path.display()));
+    let reader = ModelReader::parse(&bytes).map_err(in_file)?;
+    let train_steps = reader.metadata().get("train_steps").and_then(|s| s.parse().ok());
+    match model_from_reader(&reader).map_err(in_file)? {
         LoadedModel::Nerf(n) => Ok(LoadedBackground { nerf: *n, train_steps }),
         LoadedModel::Residual(_) => {
             Err(format!("{}: {flag}: a residual model; expected a plain NeRF of the empty workspace", path.display()))

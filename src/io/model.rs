@@ -416,7 +416,12 @@ pub fn save_residual(path: &Path, m: &ResidualModel, extra: &[(&str, String)]) -
 
 /// Loads a model of either kind from model-file bytes.
 pub fn model_from_bytes(bytes: &[u8]) -> Result<LoadedModel, Error> {
-    let r = ModelReader::parse(bytes)?;
+    model_from_reader(&ModelReader::parse(bytes)?)
+}
+
+/// Loads a model of either kind from a parsed model file (whose metadata the caller may read
+/// too, without parsing the file again).
+pub fn model_from_reader(r: &ModelReader<'_>) -> Result<LoadedModel, Error> {
     match r.meta("kind").map_err(Error::corrupt)? {
         "nerf" => Ok(LoadedModel::Nerf(Box::new(r.nerf("").map_err(Error::corrupt)?))),
         "residual" => {
@@ -436,7 +441,7 @@ pub fn model_from_bytes(bytes: &[u8]) -> Result<LoadedModel, Error> {
                     ))
                 }
             };
-            residual_from(&r, background, res, kind).map_err(Error::corrupt)
+            residual_from(r, background, res, kind).map_err(Error::corrupt)
         }
         other => Err(Error::new(ErrorKind::Unsupported, format!("model kind '{other}' is not 'nerf' or 'residual'"))),
     }

@@ -155,8 +155,8 @@ pub const DEFAULT_LIFT: Option<LiftConfig> = None;
 
 /// Default of [`PriorConfig::vote`]: three quarters of the views that see a cell must see a
 /// change there (0.5 until 2026-12-07). Over the 3000-step background the dev scenes' objects
-/// gain 20% at 25 views (every scene at every seed) and their near crops 3–5% at 25 and 100
-/// views; the region holds fewer cells, so a training ray fewer samples (docs/DECISIONS.md,
+/// gain 20% at 25 views (every scene at every seed) and their near crops 5% at 25 views and 2%
+/// at 100; the region holds fewer cells, so a training ray fewer samples (docs/DECISIONS.md,
 /// "The region's vote over the 3000-step background").
 pub const REGION_VOTE: f32 = 0.75;
 
