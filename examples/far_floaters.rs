@@ -64,7 +64,9 @@ fn main() -> Result<(), String> {
     let region = res.field.region().ok_or(format!("{model}: no change region"))?.clone();
     let (test, bg_test) = (load(scene_dir, "test", true)?, load(bg_dir, "test", true)?);
     let (train, bg_train) = (load(scene_dir, "train", false)?, load(bg_dir, "train", false)?);
-    let pcfg = PriorConfig { region_dilate: 0, vote, ..Default::default() };
+    // The core as the model's own region was voted: on the grid's cells or finer.
+    let region_subdivide = region.resolution() / res.occupancy.config().resolution;
+    let pcfg = PriorConfig { region_dilate: 0, vote, region_subdivide, ..Default::default() };
     let sky = TrainConfig::default().background;
     let core = scene_prior(isa, &bg, &bg_train.views, &train.views, sky, DensityThreshold::DEFAULT, &pcfg).region;
     let (rs, bs) = (Scene::from(&*res), Scene::from(&*bg));

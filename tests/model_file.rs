@@ -215,5 +215,23 @@ fn residual_model_round_trips_with_its_background_embedded() {
                 "{kind:?}: the region is not pinned after loading"
             );
         }
+        // A region voted twice as fine as the grid (`PriorConfig::region_subdivide`): kept at
+        // its resolution, and pinned on loading as the grid cells that hold it, no others.
+        let res = bg.occupancy.config().resolution;
+        let fine = ChangeRegion::from_cells(scene.aabb, 2 * res, &[0, 1, 2 * res * (2 * res + 1) + 5]).unwrap();
+        let mut m = model.clone();
+        m.occupancy = OccupancyGrid::new(scene.aabb, bg.occupancy.config().clone());
+        m.occupancy.update(0, &mut Rng::new(1), |_, s| s.fill(0.0));
+        m.field = m.field.with_region(fine.clone());
+        m.occupancy.pin(&fine);
+        m.occupancy.freeze_outside_pins();
+        save_residual(&path, &m, &[]).unwrap();
+        let LoadedModel::Residual(back) = load_model(&path).unwrap() else { panic!("loaded as a plain NeRF") };
+        let region = back.field.region().expect("the fine region round-trips");
+        assert_eq!((region.resolution(), region.cells()), (fine.resolution(), fine.cells()), "{kind:?}");
+        let coarse = fine.coarsened(res).unwrap();
+        assert_eq!(coarse.count(), 2, "{kind:?}: cells 0 and 1 share a grid cell");
+        assert_eq!(back.occupancy.occupancy(), 2.0 / (res * res * res) as f64, "{kind:?}: pinned other cells");
+        assert!(coarse.cells().iter().all(|&c| back.occupancy.is_occupied(coarse.cell_centre(c as usize))));
     }
 }

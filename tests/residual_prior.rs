@@ -301,6 +301,18 @@ fn the_voted_region_holds_the_glass_from_the_same_and_from_other_poses() {
                 assert!(same && held.reach == fresh.reach, "the held depths give another prior");
                 assert!(held.region.cells() == fresh.region.cells(), "the held depths give another region");
             }
+            // Voted twice as fine (the default): inside the grid's vote's cells and their
+            // neighbours, then dilated by a fine cell, so within the grid-cell region (voted
+            // on the grid's cells, dilated by one) grown by a cell.
+            let grid_cells = PriorConfig { region_subdivide: 1, ..cfg };
+            let g = scene_prior(isa, &background, bgv, &scene.views, workspace::SKY, m, &grid_cells);
+            let res = g.region.resolution();
+            assert_eq!((p.region.resolution(), res), (2 * res, background.occupancy.config().resolution));
+            let outer = g.region.dilated(1);
+            let coarse = p.region.coarsened(res).unwrap();
+            assert!(coarse.cells().iter().all(|&c| outer.has_cell(c as usize)), "a fine cell beyond the grid's vote");
+            assert!(g.region.contains(centre), "the grid-cell region misses the glass centre");
+            eprintln!("region {:.4} m³ against {:.4} m³ on the grid's cells", p.region.volume(), g.region.volume());
             // Another threshold's depths are other depths: rendered again, the same as fresh.
             let m20 = DensityThreshold::Sigma(20.0);
             let held = kept.prior(isa, &scene.views, workspace::SKY, m20, &cfg);

@@ -272,6 +272,9 @@ pub struct PriorArgs {
     pub region_vote: Option<(f32, f32)>,
     /// Cells the voted change region grows by (`--region-dilate N`).
     pub region_dilate: Option<u32>,
+    /// The region voted on a grid this many times finer than the occupancy grid
+    /// (`--region-subdivide K`).
+    pub region_subdivide: Option<u32>,
     /// Colour difference above which a scene pixel changed, and against the rendered background
     /// (`--change-tolerance T[,R]`).
     pub change_tolerance: Option<(f32, Option<f32>)>,
@@ -300,6 +303,7 @@ impl PriorArgs {
         }
         p.beta_dilate_px = self.beta_margin.unwrap_or(p.beta_dilate_px);
         p.region_dilate = self.region_dilate.unwrap_or(p.region_dilate);
+        p.region_subdivide = self.region_subdivide.unwrap_or(p.region_subdivide);
         if let Some((t, r)) = self.change_tolerance {
             p.tolerance = t;
             p.rendered_tolerance = r.unwrap_or(p.rendered_tolerance);

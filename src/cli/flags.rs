@@ -50,6 +50,7 @@ pub(super) const FLAGS: &[Flag] = &[
     Flag { name: "focus-share", commands: &["train", "compare"], setting: true },
     Flag { name: "region-vote", commands: &["train", "compare"], setting: true },
     Flag { name: "region-dilate", commands: &["train", "compare"], setting: true },
+    Flag { name: "region-subdivide", commands: &["train", "compare"], setting: true },
     Flag { name: "change-tolerance", commands: &["train", "compare"], setting: true },
     Flag { name: "frozen-stride", commands: &["train", "compare"], setting: true },
     Flag { name: "frozen-tail", commands: &["train", "compare"], setting: true },
@@ -144,6 +145,8 @@ pub(super) struct Flags {
     pub(super) region_vote: Option<(f32, f32)>,
     /// `--region-dilate N`: cells the voted change region grows by.
     pub(super) region_dilate: Option<u32>,
+    /// `--region-subdivide K`: the region voted on a grid K times finer than the occupancy grid.
+    pub(super) region_subdivide: Option<u32>,
     /// `--change-tolerance T[,R]`: colour difference above which a scene pixel changed
     /// (against the rendered background: R).
     pub(super) change_tolerance: Option<(f32, Option<f32>)>,
@@ -269,6 +272,10 @@ impl Flags {
                 }
             }
             "region-dilate" => self.region_dilate = Some(whole(p, name, 4, "cells")?),
+            "region-subdivide" => match whole(p, name, 2, "subdivisions")? {
+                0 => return Err(err("--region-subdivide: 0 is not a subdivision (1: the occupancy grid's cells)")),
+                k => self.region_subdivide = Some(k),
+            },
             "change-tolerance" => {
                 let s = text(p, name)?;
                 self.change_tolerance = match numbers(&s, |t| t > 0.0 && t <= 0.5)[..] {
@@ -484,6 +491,7 @@ impl Flags {
             focus_share: self.focus_share,
             region_vote: self.region_vote,
             region_dilate: self.region_dilate,
+            region_subdivide: self.region_subdivide,
             change_tolerance: self.change_tolerance,
             exposure_correction: self.exposure_correction,
             pose_registration: self.pose_registration,

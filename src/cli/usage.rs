@@ -8,7 +8,7 @@ commands:
          [--split NAME] [--csv FILE] [--lr LR] [--distortion L] [--near-grad D] [--fixed-background] [--background BG_MODEL [--mix mixnet|sum]
          [--density-mix raw|activated] [--mixnet-encoding own|shared] [--prior all|none|warm-start,region,focus,beta,reach,solid]
          [--background-data BG_DIR] [--beta U,E] [--beta-margin N] [--region-floor S|off]
-         [--focus-share F] [--region-vote V,S] [--region-dilate N] [--change-tolerance T[,R]] [--frozen-stride N] [--frozen-tail T] [--frozen-coarse T,N|off] [--photo-tail on|off] [--ray-pool N]
+         [--focus-share F] [--region-vote V,S] [--region-dilate N] [--region-subdivide K] [--change-tolerance T[,R]] [--frozen-stride N] [--frozen-tail T] [--frozen-coarse T,N|off] [--photo-tail on|off] [--ray-pool N]
          [--exposure-correction on|off] [--pose-registration on|off]] [--pose-registration on [--registration-passes N]]
          [--image-gains on|off] [--error-map S|off] [--pixel-jitter on|off] [--pixel-rays K] [--checkpoint-every N]
          [--scene-views N] [--budget SECONDS]
@@ -67,7 +67,7 @@ commands:
   compare --background DIR --scene DIR [--scene DIR ...] --out DIR [--background-model MODEL]
          [--methods dex,finetune,residual-paper,residual,...] [--scene-views N] [--steps N] [--rays N]
          [--log2t N] [--seed S] [--eval-every N] [--background-steps N] [--m M | --m-raw S] [--m-sweep M,M,...] [--threads N]
-         [--beta U,E] [--beta-margin N] [--region-floor S|off] [--focus-share F] [--region-vote V,S] [--region-dilate N] [--change-tolerance T[,R]]
+         [--beta U,E] [--beta-margin N] [--region-floor S|off] [--focus-share F] [--region-vote V,S] [--region-dilate N] [--region-subdivide K] [--change-tolerance T[,R]]
          [--frozen-stride N] [--frozen-tail T] [--frozen-coarse T,N|off] [--photo-tail on|off] [--ray-pool N] [--exposure-correction on|off] [--pose-registration on|off]
          [--image-gains on|off] [--pixel-jitter on|off] [--pixel-rays K]
          (--rays: every run's rays per step, default each run's own capture's as for train;
@@ -82,6 +82,7 @@ commands:
          --region-vote: a cell is in the change region when at least S of all views see it and
          at least V of those see a change there, default 0.75,0.25;
          --region-dilate: cells the voted region grows by, default 1;
+         --region-subdivide: the region voted on cells K (1 or 2) times finer than the occupancy grid's, default 2;
          --change-tolerance: colour difference (0-1, of 3x3-filtered colours) above which a
          scene pixel changed against a background image at its pose (T, default 0.03; 0.05 for
          noisy captures) and against the rendered background (R, default 0.05);

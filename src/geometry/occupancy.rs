@@ -305,13 +305,15 @@ impl OccupancyGrid {
     /// Keeps `region`'s cells occupied from now on, whatever the field's density there (a
     /// residual model's change region: where a new object may stand in what was empty air, so
     /// the residual must be sampled before it has any density). Pins carry over clones and
-    /// updates, not model files: a residual model re-pins its region on loading.
+    /// updates, not model files: a residual model re-pins its region on loading. A region
+    /// voted on a finer grid (its resolution a multiple of this grid's) pins every cell holding
+    /// one of its cells ([`super::ChangeRegion::coarsened`]).
     pub fn pin(&mut self, region: &super::ChangeRegion) {
-        assert!(
-            region.resolution() == self.config.resolution && *region.aabb() == self.aabb,
-            "occupancy: the pinned region's grid differs from the occupancy grid"
-        );
-        let p = region.bits().to_vec();
+        let coarse = region.coarsened(self.config.resolution).filter(|_| *region.aabb() == self.aabb);
+        let Some(coarse) = coarse else {
+            panic!("occupancy: the pinned region's grid differs from the occupancy grid")
+        };
+        let p = coarse.bits().to_vec();
         for (b, q) in self.bits.iter_mut().zip(&p) {
             *b |= q;
         }

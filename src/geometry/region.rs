@@ -1,5 +1,5 @@
 //! The **change region** of a residual model: the cells of a regular grid over the scene box
-//! (the occupancy grid's cells) where the scene may differ from the background. Outside it the
+//! (the occupancy grid's cells, or cells a whole number of times finer) where the scene may differ from the background. Outside it the
 //! residual field *is* the frozen background: β = 0 there, so the mix returns the background's
 //! density and colour bit for bit and neither the residual nor the Mixnet gets a gradient from
 //! it. The region is voted from the training images' change maps ([`crate::train::prior`]);
@@ -9,8 +9,13 @@
 use super::Aabb;
 use glam::Vec3;
 
+/// The finest region a model file holds: its cells' indices are stored as f32, exact up to
+/// 2^24, so at most 256³ cells ([`crate::train::prior::PriorConfig::region_subdivide`] stops there).
+pub const MAX_RESOLUTION: u32 = 256;
+
 /// A set of cells of a `resolution³` grid over `aabb` (cell `x + r·(y + r·z)`, x fastest, as
-/// the occupancy grid).
+/// the occupancy grid, or a grid a whole number of times finer:
+/// [`crate::train::prior::PriorConfig::region_subdivide`]).
 #[derive(Clone, Debug, PartialEq)]
 pub struct ChangeRegion {
     aabb: Aabb,
@@ -112,6 +117,22 @@ impl ChangeRegion {
         out
     }
 
+    /// The region on the coarser grid of `resolution` cells per axis over the same box: every
+    /// coarse cell holding a cell of this region. `None` unless `resolution` divides this
+    /// region's (a region voted finer than its occupancy grid is pinned this way).
+    pub fn coarsened(&self, resolution: u32) -> Option<ChangeRegion> {
+        if resolution == 0 || !self.resolution.is_multiple_of(resolution) {
+            return None;
+        }
+        let (r, k) = (self.resolution, self.resolution / resolution);
+        let mut out = ChangeRegion::empty(self.aabb, resolution);
+        for i in self.cells() {
+            let (x, y, z) = (i % r / k, i / r % r / k, i / (r * r) / k);
+            out.insert((x + resolution * (y + resolution * z)) as usize);
+        }
+        Some(out)
+    }
+
     /// The smallest box holding every cell of the region; `None` when it is empty.
     pub fn bounds(&self) -> Option<Aabb> {
         let r = self.resolution as usize;
@@ -179,6 +200,19 @@ mod tests {
         assert!(!r.contains(Vec3::new(f32::NAN, 0.6, 0.9)));
         assert_eq!(r.cells(), vec![1 + 4 * (2 + 4 * 3)]);
         assert!(r.contains(r.cell_centre(1 + 4 * (2 + 4 * 3))));
+    }
+
+    #[test]
+    fn coarsened_holds_every_cell_in_its_parent() {
+        // Cells (0, 0, 0), (1, 1, 1), (5, 2, 7) of an 8³ grid: parents (0, 0, 0) twice and (2, 1, 3) of 4³.
+        let r = ChangeRegion::from_cells(unit_box(), 8, &[0, 1 + 8 * (1 + 8), 5 + 8 * (2 + 8 * 7)]).unwrap();
+        let c = r.coarsened(4).unwrap();
+        assert_eq!(c.cells(), vec![0, 2 + 4 * (1 + 4 * 3)]);
+        for i in r.cells() {
+            assert!(c.contains(r.cell_centre(i as usize)));
+        }
+        assert_eq!(r.coarsened(8).unwrap(), r);
+        assert!(r.coarsened(3).is_none() && r.coarsened(0).is_none());
     }
 
     #[test]

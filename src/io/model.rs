@@ -331,8 +331,8 @@ impl ModelFile for ResidualField {
         w.mlp("mixnet", params.mixnet.mlp.weights(), mixnet.mlp().layers())?;
         if let Some(region) = self.region() {
             // Cell indices (< 1024³ ≤ 2^30; exact in f32 up to 2^24, so the grid is limited to
-            // 256³ here, above the default 128).
-            if region.resolution() > 256 {
+            // 256³ here, twice the default 128).
+            if region.resolution() > crate::geometry::region::MAX_RESOLUTION {
                 return Err(format!(
                     "change region of {}^3 cells: model files hold at most 256^3",
                     region.resolution()
@@ -468,7 +468,7 @@ fn residual_from(r: &ModelReader<'_>, background: Nerf, res: Nerf, kind: MixKind
         None => field,
         Some(text) => {
             let region = read_region(r, text, &field)?;
-            if region.resolution() == occupancy.config().resolution {
+            if region.resolution().is_multiple_of(occupancy.config().resolution) {
                 occupancy.pin(&region);
                 if r.meta("occupancy_frozen_outside_region").ok() == Some("true") {
                     occupancy.freeze_outside_pins();
