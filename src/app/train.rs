@@ -221,11 +221,12 @@ fn fresh(a: &TrainArgs, deadline: Deadline) -> Result<(), Failure> {
                 let p = scene_prior(isa, &bg, &bg_views, &data.views, cfg.background, m, &pcfg);
                 eprintln!(
                     "rnerf train: background prior: {:.1}% of the pixels changed ({}/{} views against background \
-                     images), change region {} cells, crossed by the rays of {:.1}% of the pixels",
+                     images), change region {} cells ({:.4} m³), crossed by the rays of {:.1}% of the pixels",
                     100.0 * p.changed_share(),
                     p.matched_views,
                     data.views.len(),
                     p.region.count(),
+                    p.region.volume(),
                     100.0 * p.reach_share()
                 );
                 Ok::<_, String>(p)

@@ -171,9 +171,9 @@ pub const REGION_VOTE: f32 = 0.75;
 
 /// Default of [`PriorConfig::region_subdivide`]: the region is voted on cells half the
 /// occupancy grid's (1.3 cm on the dev box; 1 until 2026-12-07). On the dev scenes the region
-/// holds 40% of the volume it did, a training ray 10–17% fewer samples, and the objects at 100
-/// views and the near crops at 25 gain about 5% (docs/DECISIONS.md, "The change region voted
-/// on cells half the grid's").
+/// holds 55–60% of the volume it did, a training ray keeps 7–20% fewer samples (a step takes
+/// 0.78× the time), and the objects at 100 views and the near crops at 25 gain 5–6%
+/// (docs/DECISIONS.md, "The change region voted on cells half the grid's").
 pub const REGION_SUBDIVIDE: u32 = 2;
 
 /// Default β regularisers: the penalty on unchanged rays at 0.02, the entropy at 0.005 from half
