@@ -1,10 +1,11 @@
 //! The **change region** of a residual model: the cells of a regular grid over the scene box
-//! (the occupancy grid's cells, or cells a whole number of times finer) where the scene may differ from the background. Outside it the
-//! residual field *is* the frozen background: β = 0 there, so the mix returns the background's
-//! density and colour bit for bit and neither the residual nor the Mixnet gets a gradient from
-//! it. The region is voted from the training images' change maps ([`crate::train::prior`]);
-//! inside it the trainer keeps the occupancy grid's cells marchable, so a glass standing where
-//! the background had empty air is sampled from the first step on.
+//! (the occupancy grid's cells, or cells a whole number of times finer) where the scene may
+//! differ from the background. Outside it the residual field *is* the frozen background: β = 0
+//! there, so the mix returns the background's density and colour bit for bit and neither the
+//! residual nor the Mixnet gets a gradient from it. The region is voted from the training
+//! images' change maps ([`crate::train::prior`]); inside it the trainer keeps the occupancy
+//! grid's cells marchable (every grid cell holding a cell of the region), so a glass standing
+//! where the background had empty air is sampled from the first step on.
 
 use super::Aabb;
 use glam::Vec3;
