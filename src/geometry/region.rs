@@ -134,6 +134,20 @@ impl ChangeRegion {
         Some(out)
     }
 
+    /// The region on the grid `k` times finer over the same box: every cell split into its k³
+    /// children (the inverse of [`Self::coarsened`]).
+    pub fn subdivided(&self, k: u32) -> ChangeRegion {
+        let (r, f) = (self.resolution, self.resolution * k);
+        let mut out = ChangeRegion::empty(self.aabb, f);
+        for i in self.cells() {
+            let (x, y, z) = (i % r * k, i / r % r * k, i / (r * r) * k);
+            for j in 0..k * k * k {
+                out.insert(((x + j % k) + f * ((y + j / k % k) + f * (z + j / (k * k)))) as usize);
+            }
+        }
+        out
+    }
+
     /// The smallest box holding every cell of the region; `None` when it is empty.
     pub fn bounds(&self) -> Option<Aabb> {
         let r = self.resolution as usize;
@@ -214,6 +228,11 @@ mod tests {
         }
         assert_eq!(r.coarsened(8).unwrap(), r);
         assert!(r.coarsened(3).is_none() && r.coarsened(0).is_none());
+        // Subdivided, each cell becomes its 8 children, which coarsen back to it.
+        let f = c.subdivided(2);
+        assert_eq!((f.resolution(), f.count()), (8, 16));
+        assert_eq!(f.coarsened(4).unwrap(), c);
+        assert!(f.cells().iter().all(|&i| c.contains(f.cell_centre(i as usize))));
     }
 
     #[test]
