@@ -83,7 +83,7 @@ for name in names:
             ratios.append((sum(m[0] for m in mine) / sum(x[0] for x in d), sum(m[1] for m in mine) / sum(x[1] for x in d)))
         per = ", ".join(f"{a:.2f} / {b:.2f}" for a, b in ratios)
         mo, mn = (sum(r[i] for r in ratios) / len(ratios) for i in (0, 1))
-        print(f"  / Dex-NeRF (object / near crop): seeds {per}; mean {mo:.2f}x / {mn:.2f}x")
+        print(f"  / Dex-NeRF (object / near crop): seeds {per}; mean {mo:.3f}x / {mn:.3f}x")
 print()
 for (scene, name, seed), (o, n, _, t) in sorted(runs.items()):
     b = runs.get((scene, base, seed))

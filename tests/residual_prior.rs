@@ -17,7 +17,7 @@ use residual_nerf::field::Nerf;
 use residual_nerf::geometry::ChangeRegion;
 use residual_nerf::render::{Aabb, DensityThreshold};
 use residual_nerf::rng::Rng;
-use residual_nerf::train::prior::{change_map, changed_pixels, dilate, scene_prior, PriorConfig};
+use residual_nerf::train::prior::{change_map, changed_pixels, close_and_fill, dilate, scene_prior, PriorConfig};
 use residual_nerf::train::scene::SceneBackground;
 use residual_nerf::train::trainer::train_nerf;
 use residual_nerf::GradientMode;
@@ -183,6 +183,55 @@ fn far_from(mask: &[bool], w: usize, r: i64) -> Vec<bool> {
         .collect()
 }
 
+/// A map from rows of `#` (set) and `.` (unset).
+fn map_of(rows: &[&str]) -> (Vec<bool>, u32, u32) {
+    let map = rows.iter().flat_map(|r| r.chars().map(|c| c == '#')).collect();
+    (map, rows[0].len() as u32, rows.len() as u32)
+}
+
+#[test]
+fn closing_and_filling_spares_what_a_changed_outline_encloses_and_nothing_outside_it() {
+    // An outline open by two pixels on its right, a lone pixel and a bay open to the border.
+    let (map, w, h) = map_of(&[
+        "............",
+        ".#####......",
+        ".#..........",
+        ".#..........",
+        ".#####......",
+        "............",
+        "............",
+        "........#...",
+        "............",
+        "#####.......",
+        "#...#.......",
+    ]);
+    let by_1 = close_and_fill(&map, w, h, 1);
+    let (expected, ..) = map_of(&[
+        "............",
+        ".#####......",
+        ".#####......",
+        ".#####......",
+        ".#####......",
+        "............",
+        "............",
+        "........#...",
+        "............",
+        "#####.......",
+        "#...#.......",
+    ]);
+    assert_eq!(by_1, expected, "radius 1 closes the outline and fills it, and leaves the lone pixel and the bay");
+    // Radius 0 fills the holes only: the outline's gap keeps its inside joined to the border.
+    assert_eq!(close_and_fill(&map, w, h, 0), map, "an open outline encloses nothing");
+    let (ring, rw, rh) = map_of(&["......", ".####.", ".#..#.", ".####.", "......"]);
+    let (filled, ..) = map_of(&["......", ".####.", ".####.", ".####.", "......"]);
+    assert_eq!(close_and_fill(&ring, rw, rh, 0), filled, "a closed outline's inside is filled");
+    // Every set pixel stays set, whatever the radius.
+    for r in 0..4 {
+        let out = close_and_fill(&map, w, h, r);
+        assert!(map.iter().zip(&out).all(|(&a, &b)| !a || b), "radius {r} lost a set pixel");
+    }
+}
+
 #[test]
 fn change_maps_find_the_glass_and_nothing_far_from_it() {
     let size = 48;
@@ -270,11 +319,12 @@ fn the_voted_region_holds_the_glass_from_the_same_and_from_other_poses() {
         let cfg = PriorConfig { min_seen: 0.25, holes_see: false, ..Default::default() };
         let p = scene_prior(isa, &background, bgv, &scene.views, workspace::SKY, m, &cfg);
         assert_eq!(p.matched_views, if matched { 24 } else { 0 });
-        // The β penalty spares the changed pixels dilated by its own margin: by default the
-        // maps' (the focus pixels), with margin 0 the changed pixels alone, a subset.
+        // The β penalty spares the changed pixels, closed and filled by its radius, dilated by
+        // its margin: by default (no closing, the maps' dilation) the focus pixels, with margin
+        // 0 the changed pixels alone, a subset; closed and filled, a superset of those.
         assert_eq!(p.spared, p.focus);
         if matched {
-            let tight = PriorConfig { beta_dilate_px: 0, ..cfg };
+            let tight = PriorConfig { beta_close_px: 0, beta_dilate_px: 0, ..cfg };
             let q = scene_prior(isa, &background, bgv, &scene.views, workspace::SKY, m, &tight);
             assert_eq!(q.focus, p.focus, "the margin changes the focus pixels");
             let focus: std::collections::HashSet<_> = q.focus.iter().collect();
@@ -290,11 +340,19 @@ fn the_voted_region_holds_the_glass_from_the_same_and_from_other_poses() {
             let spared: Vec<usize> = q.spared.iter().filter(|x| x.0 == v as u32).map(|x| x.1 as usize).collect();
             let expected: Vec<usize> = (0..w * w).filter(|&p| raw[p]).collect();
             assert_eq!(spared, expected, "view {v}: margin 0 spares exactly the changed pixels");
+            let shut = PriorConfig { beta_close_px: 4, beta_dilate_px: 0, ..cfg };
+            let f = scene_prior(isa, &background, bgv, &scene.views, workspace::SKY, m, &shut);
+            let closed = close_and_fill(&raw, size, size, 4);
+            let spared: Vec<usize> = f.spared.iter().filter(|x| x.0 == v as u32).map(|x| x.1 as usize).collect();
+            let expected: Vec<usize> = (0..w * w).filter(|&p| closed[p]).collect();
+            assert_eq!(spared, expected, "view {v}: radius 4 spares the changed pixels closed and filled");
+            let filled: std::collections::HashSet<_> = f.spared.iter().collect();
+            assert!(q.spared.iter().all(|x| filled.contains(x)), "closing lost a changed pixel");
             // Kept between scene phases, the background's depth at its images' poses is
             // rendered once and read back after: the same priors as rendering it each time.
             let mut kept = SceneBackground::new(&background, bgv).expect("usable views");
             assert_eq!(kept.depths_held(), 0);
-            for (cfg, fresh) in [(&cfg, &p), (&tight, &q), (&cfg, &p)] {
+            for (cfg, fresh) in [(&cfg, &p), (&tight, &q), (&shut, &f), (&cfg, &p)] {
                 let held = kept.prior(isa, &scene.views, workspace::SKY, m, cfg);
                 assert_eq!(kept.depths_held(), 24, "one depth per background image");
                 let same = held.maps == fresh.maps && held.focus == fresh.focus && held.spared == fresh.spared;

@@ -263,6 +263,9 @@ pub struct PriorArgs {
     pub beta: Option<(f32, f32)>,
     /// Pixels around the changed ones the β penalty spares (`--beta-margin N`).
     pub beta_margin: Option<u32>,
+    /// Closing radius of the changed pixels the β penalty spares, their holes filled
+    /// (`--beta-fill R`).
+    pub beta_fill: Option<u32>,
     /// The residual's density floor in the change region (`--region-floor S|off`).
     pub region_floor: Option<Option<f32>>,
     /// Share of each step's rays drawn from changed pixels (`--focus-share F`).
@@ -302,6 +305,7 @@ impl PriorArgs {
             (p.beta.unchanged, p.beta.entropy) = (unchanged, entropy);
         }
         p.beta_dilate_px = self.beta_margin.unwrap_or(p.beta_dilate_px);
+        p.beta_close_px = self.beta_fill.unwrap_or(p.beta_close_px);
         p.region_dilate = self.region_dilate.unwrap_or(p.region_dilate);
         p.region_subdivide = self.region_subdivide.unwrap_or(p.region_subdivide);
         if let Some((t, r)) = self.change_tolerance {

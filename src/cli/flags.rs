@@ -46,6 +46,7 @@ pub(super) const FLAGS: &[Flag] = &[
     Flag { name: "background-data", commands: &["train", "bench"], setting: true },
     Flag { name: "beta", commands: &["train", "compare"], setting: true },
     Flag { name: "beta-margin", commands: &["train", "compare"], setting: true },
+    Flag { name: "beta-fill", commands: &["train", "compare"], setting: true },
     Flag { name: "region-floor", commands: &["train", "compare"], setting: true },
     Flag { name: "focus-share", commands: &["train", "compare"], setting: true },
     Flag { name: "region-vote", commands: &["train", "compare"], setting: true },
@@ -140,6 +141,8 @@ pub(super) struct Flags {
     pub(super) beta: Option<(f32, f32)>,
     /// `--beta-margin N`: pixels around the changed ones the β penalty spares.
     pub(super) beta_margin: Option<u32>,
+    /// `--beta-fill R`: the changed pixels the β penalty spares closed by R pixels, holes filled.
+    pub(super) beta_fill: Option<u32>,
     pub(super) region_floor: Option<Option<f32>>,
     pub(super) focus_share: Option<f32>,
     pub(super) region_vote: Option<(f32, f32)>,
@@ -219,6 +222,7 @@ impl Flags {
                 }
             }
             "beta-margin" => self.beta_margin = Some(whole(p, name, 16, "pixels")?),
+            "beta-fill" => self.beta_fill = Some(whole(p, name, 64, "pixels")?),
             "region-floor" => {
                 let s = text(p, name)?;
                 self.region_floor = Some(match s.as_str() {
@@ -487,6 +491,7 @@ impl Flags {
         super::PriorArgs {
             beta: self.beta,
             beta_margin: self.beta_margin,
+            beta_fill: self.beta_fill,
             region_floor: self.region_floor,
             focus_share: self.focus_share,
             region_vote: self.region_vote,

@@ -7,7 +7,7 @@ commands:
   train  --data DIR --out MODEL [--steps N] [--rays N] [--log2t N] [--seed S] [--threads N]
          [--split NAME] [--csv FILE] [--lr LR] [--distortion L] [--near-grad D] [--fixed-background] [--background BG_MODEL [--mix mixnet|sum]
          [--density-mix raw|activated] [--mixnet-encoding own|shared] [--prior all|none|warm-start,region,focus,beta,reach,solid]
-         [--background-data BG_DIR] [--beta U,E] [--beta-margin N] [--region-floor S|off]
+         [--background-data BG_DIR] [--beta U,E] [--beta-fill R] [--beta-margin N] [--region-floor S|off]
          [--focus-share F] [--region-vote V,S] [--region-dilate N] [--region-subdivide K] [--change-tolerance T[,R]] [--frozen-stride N] [--frozen-tail T] [--frozen-coarse T,N|off] [--photo-tail on|off] [--ray-pool N]
          [--exposure-correction on|off] [--pose-registration on|off]] [--pose-registration on [--registration-passes N]]
          [--image-gains on|off] [--error-map S|off] [--pixel-jitter on|off] [--pixel-rays K] [--checkpoint-every N]
@@ -32,8 +32,9 @@ commands:
          each training ray through a random point of its pixel instead of its centre (default
          off). --pixel-rays K: score each training pixel by the mean colour of K rays through
          its footprint (a 1.5 px Blackman-Harris filter, as the dev renders'; the step's rays
-         cover rays/K pixels; default 1). --beta-margin N: the β penalty spares the changed pixels grown by N pixels
-         (default 2, the change maps' own dilation).
+         cover rays/K pixels; default 1). --beta-fill R --beta-margin N: the β penalty spares
+         the changed pixels closed by a square of radius R pixels with the holes they enclose
+         filled (0: neither), then grown by N pixels (defaults 0 and 2, the maps' own dilation).
          --budget S: once S seconds of wall time have passed since the command started
          (loading and the background prior included), stop after the current step and write
          the model of the steps so far (a residual model's change region settled as at a run's
@@ -67,7 +68,7 @@ commands:
   compare --background DIR --scene DIR [--scene DIR ...] --out DIR [--background-model MODEL]
          [--methods dex,finetune,residual-paper,residual,...] [--scene-views N] [--steps N] [--rays N]
          [--log2t N] [--seed S] [--eval-every N] [--background-steps N] [--m M | --m-raw S] [--m-sweep M,M,...] [--threads N]
-         [--beta U,E] [--beta-margin N] [--region-floor S|off] [--focus-share F] [--region-vote V,S] [--region-dilate N] [--region-subdivide K] [--change-tolerance T[,R]]
+         [--beta U,E] [--beta-fill R] [--beta-margin N] [--region-floor S|off] [--focus-share F] [--region-vote V,S] [--region-dilate N] [--region-subdivide K] [--change-tolerance T[,R]]
          [--frozen-stride N] [--frozen-tail T] [--frozen-coarse T,N|off] [--photo-tail on|off] [--ray-pool N] [--exposure-correction on|off] [--pose-registration on|off]
          [--image-gains on|off] [--pixel-jitter on|off] [--pixel-rays K]
          (--rays: every run's rays per step, default each run's own capture's as for train;
@@ -75,7 +76,8 @@ commands:
          given, default 3 x --steps (it is trained once, offline; 3000 at the defaults);
          --m-sweep: also score the final models at these σ thresholds, default 3,10,20,40;
          --beta: weights of the background-aware methods' β penalty and entropy;
-         --beta-margin: pixels around the changed ones the β penalty spares, default 2;
+         --beta-fill, --beta-margin: the β penalty spares the changed pixels closed by R pixels,
+         their holes filled (0: neither), grown by N pixels, defaults 0 and 2;
          --region-floor: lift the warm-started residual's raw density in the change region to at
          least S before training (σ = e^S per metre), default off;
          --focus-share: share of each step's rays drawn from changed pixels, default 0.5;
