@@ -166,7 +166,7 @@ pub const RENDERED_TOLERANCE: f32 = 0.05;
 pub const BETA_DILATE_PX: u32 = 2;
 
 /// Default of [`PriorConfig::beta_close_px`]: 0, no closing and no fill. At 4 with margin 0 or 1
-/// the dev scenes' near crops gain 5% or 2.5%, but the demo's faint sphere loses 6–26% of its
+/// the dev scenes' near crops gain 5% or 2.4%, but the demo's faint sphere loses 6–26% of its
 /// object MAE at every seed, and at margin 0 glass_up's tumbler 6–11% (docs/DECISIONS.md, "The
 /// β penalty sparing what the changed pixels enclose (measured, off)").
 pub const BETA_CLOSE_PX: u32 = 0;
@@ -571,25 +571,28 @@ pub fn changed_pixels(scene: &[[f32; 3]], background: &[[f32; 3]], w: u32, h: u3
     kept
 }
 
-/// `map` (`w × h`, row-major) grown by `r` pixels (a square neighbourhood).
+/// `map` (`w × h`, row-major) grown by `r` pixels (a square neighbourhood, clipped to the
+/// image): along each row, then each column, a pixel is set when any pixel within `r` of it is,
+/// from running counts of set pixels.
 pub fn dilate(map: &[bool], w: u32, h: u32, r: u32) -> Vec<bool> {
-    let (w, h, r) = (w as usize, h as usize, r as i64);
-    let mut out = vec![false; w * h];
-    for y in 0..h as i64 {
-        for x in 0..w as i64 {
-            if map[y as usize * w + x as usize] {
-                for dy in -r..=r {
-                    for dx in -r..=r {
-                        let (xx, yy) = (x + dx, y + dy);
-                        if xx >= 0 && yy >= 0 && (xx as usize) < w && (yy as usize) < h {
-                            out[yy as usize * w + xx as usize] = true;
-                        }
-                    }
-                }
+    let (w, h, r) = (w as usize, h as usize, r as usize);
+    assert_eq!(map.len(), w * h, "prior: map differs from width × height");
+    let pass = |m: &[bool], along_rows: bool| -> Vec<bool> {
+        let (lines, len) = if along_rows { (h, w) } else { (w, h) };
+        let at = |line: usize, i: usize| if along_rows { line * w + i } else { i * w + line };
+        let mut out = vec![false; w * h];
+        let mut prefix = vec![0u32; len + 1];
+        for line in 0..lines {
+            for i in 0..len {
+                prefix[i + 1] = prefix[i] + m[at(line, i)] as u32;
+            }
+            for i in 0..len {
+                out[at(line, i)] = prefix[(i + r + 1).min(len)] > prefix[i.saturating_sub(r)];
             }
         }
-    }
-    out
+        out
+    };
+    pass(&pass(map, true), false)
 }
 
 /// `map` (`w × h`, row-major) closed by a square of radius `r` (grown by `r`, then shrunk by
@@ -599,33 +602,16 @@ pub fn dilate(map: &[bool], w: u32, h: u32, r: u32) -> Vec<bool> {
 pub fn close_and_fill(map: &[bool], w: u32, h: u32, r: u32) -> Vec<bool> {
     let (w, h, r) = (w as usize, h as usize, r as usize);
     assert_eq!(map.len(), w * h, "prior: map differs from width × height");
-    // The closing on the image padded by `r`: along each row, then each column, whether any
-    // (grow) or every (shrink) pixel within `r` is set, from running counts of set pixels.
+    // The closing on the image padded by `r`, where no pixel's window leaves the padded image:
+    // grown, then shrunk (the pixels no unset pixel of the grown map is within `r` of).
     let (pw, ph) = (w + 2 * r, h + 2 * r);
     let mut padded = vec![false; pw * ph];
     for y in 0..h {
         padded[(y + r) * pw + r..(y + r) * pw + r + w].copy_from_slice(&map[y * w..(y + 1) * w]);
     }
-    let pass = |m: &[bool], along_rows: bool, grow: bool| -> Vec<bool> {
-        let (lines, len) = if along_rows { (ph, pw) } else { (pw, ph) };
-        let at = |line: usize, i: usize| if along_rows { line * pw + i } else { i * pw + line };
-        let mut out = vec![false; pw * ph];
-        let mut prefix = vec![0u32; len + 1];
-        for line in 0..lines {
-            for i in 0..len {
-                prefix[i + 1] = prefix[i] + m[at(line, i)] as u32;
-            }
-            for i in 0..len {
-                let (lo, hi) = (i.saturating_sub(r), (i + r + 1).min(len));
-                let set = (prefix[hi] - prefix[lo]) as usize;
-                out[at(line, i)] = if grow { set > 0 } else { set == hi - lo };
-            }
-        }
-        out
-    };
-    let grown = pass(&pass(&padded, true, true), false, true);
-    let shut = pass(&pass(&grown, true, false), false, false);
-    let mut closed: Vec<bool> = (0..w * h).map(|i| shut[(i / w + r) * pw + r + i % w]).collect();
+    let unset: Vec<bool> = dilate(&padded, pw as u32, ph as u32, r as u32).iter().map(|&g| !g).collect();
+    let near_unset = dilate(&unset, pw as u32, ph as u32, r as u32);
+    let mut closed: Vec<bool> = (0..w * h).map(|i| !near_unset[(i / w + r) * pw + r + i % w]).collect();
     // The holes: unset pixels the border's unset pixels do not reach.
     let mut outside = vec![false; w * h];
     let mut stack: Vec<usize> = (0..w * h)
