@@ -43,7 +43,8 @@ def close_fill(m, r):
 rules = [('margin 0', lambda c: c), ('margin 1', lambda c: dilate(c, 1)),
          ('margin 2 (default)', lambda c: dilate(c, 2)), ('fill 0, margin 0', lambda c: close_fill(c, 0)),
          ('fill 2, margin 0', lambda c: close_fill(c, 2)), ('fill 4, margin 0', lambda c: close_fill(c, 4)),
-         ('fill 8, margin 0', lambda c: close_fill(c, 8)), ('fill 4, margin 1', lambda c: dilate(close_fill(c, 4), 1))]
+         ('fill 8, margin 0', lambda c: close_fill(c, 8)), ('fill 4, margin 1', lambda c: dilate(close_fill(c, 4), 1)),
+         ('fill 4, margin 2', lambda c: dilate(close_fill(c, 4), 2))]
 print(f'tolerance {tol}; share of the pixels spared: object mask / 1-2 px ring / 3-8 px out')
 for scene in ['glass_up', 'bottle', 'wine_flat']:
     acc = np.zeros((len(rules), 3))

@@ -10,7 +10,8 @@ its own final object MAE.
 
 CURVES is an `rnerf compare` curves.csv, optionally `FILE:METHOD,METHOD` to take only those
 methods' rows (e.g. the baseline's curves from an earlier run whose training it still is). A
-(scene, method, step) point met twice is an error.
+(scene, method, step) point met twice is an error; a scene without the baseline's curves gets
+the method's own columns only.
 """
 import csv
 import sys
@@ -49,15 +50,19 @@ def main(argv):
             ((int(r["step"]), float(r["seconds"]), float(r["object_mae"])) for r in rows if r["scene"] == s and r["method"] == m)
         )
         b, m = curve(baseline), curve(method)
-        if not b or not m:
-            print(f"| {s} | missing curves for {baseline} or {method} |")
+        if not m:
+            print(f"| {s} | missing curves for {method} |")
             continue
-        b_final, b_secs = b[-1][2], b[-1][1]
-        reach = next(((st, sec) for st, sec, mae in m if mae <= b_final), None)
         m_final = m[-1][2]
         near = next(((st, sec) for st, sec, mae in m if mae <= 1.05 * m_final), None)
-        reach_text = f"{reach[0]} ({reach[1]:.1f} s), {reach[1] / b_secs:.2f}×" if reach else "never"
-        print(f"| {s} | {b_final:.4f}, {b_secs:.1f} s | {reach_text} | {m_final:.4f} | {near[0]} ({near[1]:.1f} s) |")
+        if b:
+            b_final, b_secs = b[-1][2], b[-1][1]
+            reach = next(((st, sec) for st, sec, mae in m if mae <= b_final), None)
+            reach_text = f"{reach[0]} ({reach[1]:.1f} s), {reach[1] / b_secs:.2f}×" if reach else "never"
+            base_text = f"{b_final:.4f}, {b_secs:.1f} s"
+        else:
+            base_text, reach_text = f"no {baseline} curves", "–"
+        print(f"| {s} | {base_text} | {reach_text} | {m_final:.4f} | {near[0]} ({near[1]:.1f} s) |")
 
 
 if __name__ == "__main__":

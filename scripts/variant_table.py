@@ -8,9 +8,11 @@ every setting ran; then each run's change against the same scene and seed under 
 (default glass_up,bottle,wine_flat); --dex DIR adds each setting's ratio to Dex-NeRF's final
 object MAE and near-crop RMSE (the last `dex` row of DIR/SCENE_seedS_curves.csv, an `rnerf
 compare` curves file) on the scene means, per seed and the mean of the seeds' ratios; with
---dex-views N, Dex-NeRF's N-view runs (DIR/SCENE_viewsN_seedS_curves.csv) instead.
+--dex-views N, Dex-NeRF's N-view runs (DIR/SCENE_viewsN_seedS_curves.csv) instead; with
+--dex-name NAME, the runs of setting NAME among the OUTs instead (Dex-NeRF trained by
+`scripts/residual_variant.sh` with BG_MODEL `-`), which are then not a setting of the table.
 usage: scripts/variant_table.py OUT [OUT2 ...] [--base NAME] [--names NAME,NAME,...]
-         [--scenes SCENE,SCENE,...] [--dex DIR [--dex-views N]]"""
+         [--scenes SCENE,SCENE,...] [--dex DIR [--dex-views N] | --dex-name NAME]"""
 import csv
 import glob
 import json
@@ -27,6 +29,7 @@ SCENES = tuple(take(args, "--scenes", "glass_up,bottle,wine_flat").split(","))
 dex_dir = take(args, "--dex", None)
 dex_views = take(args, "--dex-views", None)
 dex_tag = f"views{dex_views}_" if dex_views else ""
+dex_name = take(args, "--dex-name", None)
 runs = {}
 for out in args:
     for f in glob.glob(os.path.join(out, "*.eval.json")):
@@ -36,7 +39,7 @@ for out in args:
         if not m:
             continue
         name, seed = m.group(1), int(m.group(2))
-        if only is not None and name != base and name not in only.split(","):
+        if only is not None and name not in (base, dex_name) and name not in only.split(","):
             continue
         try:
             r = json.load(open(f))["regions"]
@@ -52,7 +55,7 @@ for out in args:
             float(secs[-1]) if secs else float("nan"),
         )
 
-names = sorted({n for (_, n, _) in runs}, key=lambda n: (n != base, n))
+names = sorted({n for (_, n, _) in runs if n != dex_name}, key=lambda n: (n != base, n))
 print("| setting, seed | " + " | ".join(SCENES) + " | mean |")
 print("|---" * (len(SCENES) + 2) + "|")
 for name in names:
@@ -72,8 +75,10 @@ for name in names:
     o = sum(runs[(sc, name, s)][0] for sc in SCENES for s in seeds) / (len(SCENES) * len(seeds))
     n = sum(runs[(sc, name, s)][1] for sc in SCENES for s in seeds) / (len(SCENES) * len(seeds))
     print(f"{name}: mean over seeds {seeds}: object MAE {o:.4f} m, near-crop RMSE {n:.4f} m")
-    if dex_dir:
+    if dex_dir or dex_name:
         def dex(scene, seed):
+            if dex_name:
+                return runs[(scene, dex_name, seed)][:2]
             rows = [r for r in csv.DictReader(open(os.path.join(dex_dir, f"{scene}_{dex_tag}seed{seed}_curves.csv"))) if r["method"] == "dex"]
             return float(rows[-1]["object_mae"]), float(rows[-1]["near_rmse"])
         ratios = []
@@ -87,5 +92,5 @@ for name in names:
 print()
 for (scene, name, seed), (o, n, _, t) in sorted(runs.items()):
     b = runs.get((scene, base, seed))
-    if name != base and b:
+    if name not in (base, dex_name) and b:
         print(f"{scene} {name} seed {seed}: object {o / b[0] - 1:+.1%}, near crop {n / b[1] - 1:+.1%}; {t:.1f} s against {b[3]:.1f} s")
