@@ -233,5 +233,19 @@ fn residual_model_round_trips_with_its_background_embedded() {
         assert_eq!(coarse.count(), 2, "{kind:?}: cells 0 and 1 share a grid cell");
         assert_eq!(back.occupancy.occupancy(), 2.0 / (res * res * res) as f64, "{kind:?}: pinned other cells");
         assert!(coarse.cells().iter().all(|&c| back.occupancy.is_occupied(coarse.cell_centre(c as usize))));
+        // Finer than 256³ cells the file holds coordinates: an index above 2^24 (not exact
+        // in f32) round-trips, the last cell included; finer than 512³ is refused.
+        let r = 509u32;
+        let last = r * r * r - 1;
+        let finest = ChangeRegion::from_cells(scene.aabb, r, &[0, (1 << 24) + 1, last - r, last]).unwrap();
+        let mut m = model.clone();
+        m.field = m.field.with_region(finest.clone());
+        save_residual(&path, &m, &[]).unwrap();
+        let LoadedModel::Residual(back) = load_model(&path).unwrap() else { panic!("loaded as a plain NeRF") };
+        let region = back.field.region().expect("the finest region round-trips");
+        assert_eq!((region.resolution(), region.cells()), (r, finest.cells()), "{kind:?}");
+        m.field = m.field.with_region(ChangeRegion::from_cells(scene.aabb, 513, &[0]).unwrap());
+        let e = save_residual(&path, &m, &[]).unwrap_err();
+        assert!(e.to_string().contains("at most 512^3"), "{kind:?}: {e}");
     }
 }

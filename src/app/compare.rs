@@ -104,7 +104,7 @@ pub(super) fn run(a: &crate::cli::CompareArgs) -> Result<(), String> {
         scenes.push(SceneData { name, train: views, test });
     }
     std::fs::create_dir_all(&a.out).map_err(|e| format!("{}: --out: cannot create: {e}", a.out.display()))?;
-    let (grid, mut train) = trainer_settings(a.steps, a.rays, a.log2t, a.seed, any_alpha);
+    let (grid, mut train) = trainer_settings(a.steps, a.rays, a.log2t, a.seed, any_alpha, &aabb);
     train.frozen_stride = a.frozen_stride.unwrap_or(train.frozen_stride);
     train.frozen_tail = a.frozen_tail.unwrap_or(train.frozen_tail);
     (train.frozen_coarse, train.frozen_coarse_stride) =
@@ -362,7 +362,8 @@ impl QualityData {
         let bg_train = crate::app::load_data(bg_dir, "train", &bg_opts)?;
         let bg_test = crate::app::load_data(bg_dir, "test", &bg_opts)?;
         let (scene_train, scene_test) = load_scene(scene_dir, bg_train.aabb, bg_dir)?;
-        let (grid, train) = trainer_settings(None, None, log2t, None, bg_train.had_alpha || scene_train.had_alpha);
+        let (grid, train) =
+            trainer_settings(None, None, log2t, None, bg_train.had_alpha || scene_train.had_alpha, &bg_train.aabb);
         // The curve's spacing is the measurement's own (`quality::CURVE_EVERY`); each run's
         // rays by its capture, as `rnerf compare` does without `--rays`.
         let cfg =

@@ -6,6 +6,7 @@ use crate::cli::TrainArgs;
 use crate::data::{AabbSource, Dataset, LoadOptions};
 use crate::encoding::HashGridConfig;
 use crate::field::mix::{DensityMix, MixKind};
+use crate::field::mixnet::MixnetEncoding;
 use crate::field::residual::{ResidualConfig, ResidualModel};
 use crate::field::{Nerf, NerfConfig, NerfField};
 use crate::files::write_atomic;
@@ -15,6 +16,7 @@ use crate::render::{Aabb, Pose};
 use crate::simd::Isa;
 use crate::train::prior::{residual_start, scene_prior, ColourCorrection, Prior};
 use crate::train::register::{registration_passes, Registration};
+use crate::train::sizing;
 use crate::train::trainer::{TrainConfig, Trainer, BACKGROUND_STEP_FACTOR};
 use signal_hook::consts::{SIGINT, SIGTERM};
 use std::fmt::Write as _;
@@ -25,20 +27,24 @@ use std::time::{Duration, Instant};
 
 /// The grid and trainer settings of `rnerf train` and `rnerf compare`: the defaults
 /// ([`TrainConfig::default`], log2T = 17) with the command line's steps, rays, table size and
-/// seed; images without alpha (every pixel shows a surface) train over random background
-/// colours, others over white (what their alpha was composited over).
+/// seed, the march step and the finest grid cell sized for the scene box `aabb`
+/// ([`crate::train::sizing`]); images without alpha (every pixel shows a surface) train over
+/// random background colours, others over white (what their alpha was composited over).
 pub(super) fn trainer_settings(
     steps: Option<u32>,
     rays: Option<usize>,
     log2t: Option<u32>,
     seed: Option<u64>,
     had_alpha: bool,
+    aabb: &Aabb,
 ) -> (HashGridConfig, TrainConfig) {
     let grid = HashGridConfig {
         log2_table_size: log2t.unwrap_or(HashGridConfig::default().log2_table_size),
         ..Default::default()
     };
+    let grid = sizing::grid_for_box(grid, aabb, sizing::FIELD_CELL);
     let mut cfg = steps.map_or_else(TrainConfig::default, TrainConfig::with_steps);
+    cfg.occupancy = sizing::occupancy_for_box(cfg.occupancy, aabb);
     cfg.rays_per_step = rays.unwrap_or(cfg.rays_per_step);
     cfg.seed = seed.unwrap_or(cfg.seed);
     cfg.random_background = !had_alpha;
@@ -171,7 +177,7 @@ fn fresh(a: &TrainArgs, deadline: Deadline) -> Result<(), Failure> {
         data.views = crate::data::evenly_spaced(&data.views, n);
     }
     describe_data(&data);
-    let (grid, mut cfg) = trainer_settings(a.steps, a.rays, a.log2t, a.seed, data.had_alpha);
+    let (grid, mut cfg) = trainer_settings(a.steps, a.rays, a.log2t, a.seed, data.had_alpha, &data.aabb);
     let field = NerfConfig { grid, aabb: data.aabb };
     cfg.distortion = a.distortion.unwrap_or(cfg.distortion);
     cfg.schedule.base = a.lr.unwrap_or(cfg.schedule.base);
@@ -199,7 +205,10 @@ fn fresh(a: &TrainArgs, deadline: Deadline) -> Result<(), Failure> {
             }
             let bg = bg.nerf;
             let kind = a.mix.unwrap_or(MixKind::Mixnet(DensityMix::Raw));
-            let mixnet = a.mixnet.unwrap_or_default();
+            let mixnet = match a.mixnet.unwrap_or_default() {
+                MixnetEncoding::Own(_) => MixnetEncoding::Own(sizing::mixnet_grid_for_box(&data.aabb)),
+                shared => shared,
+            };
             let hints = a.prior.unwrap_or(match kind {
                 MixKind::Mixnet(_) => Prior::ALL,
                 MixKind::Sum => Prior::NONE,

@@ -276,7 +276,7 @@ impl Flags {
                 }
             }
             "region-dilate" => self.region_dilate = Some(whole(p, name, 4, "cells")?),
-            "region-subdivide" => match whole(p, name, 2, "subdivisions")? {
+            "region-subdivide" => match whole(p, name, 4, "subdivisions")? {
                 0 => return Err(err("--region-subdivide: 0 is not a subdivision (1: the occupancy grid's cells)")),
                 k => self.region_subdivide = Some(k),
             },

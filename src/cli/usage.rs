@@ -84,7 +84,7 @@ commands:
          --region-vote: a cell is in the change region when at least S of all views see it and
          at least V of those see a change there, default 0.75,0.25;
          --region-dilate: cells the voted region grows by, default 1;
-         --region-subdivide: the region voted on cells K (1 or 2) times finer than the occupancy grid's, default 2;
+         --region-subdivide: the region voted on cells K (1 to 4) times finer than the occupancy grid's, default 2;
          --change-tolerance: colour difference (0-1, of 3x3-filtered colours) above which a
          scene pixel changed against a background image at its pose (T, default 0.03; 0.05 for
          noisy captures) and against the rendered background (R, default 0.05);

@@ -241,17 +241,18 @@ pub struct CompareConfig {
 }
 
 impl CompareConfig {
-    /// `train` and `field` with every other setting at its default: the Mixnet's default grid,
+    /// `train` and `field` with every other setting at its default: the Mixnet's default grid
+    /// sized for the field's box ([`crate::train::sizing::mixnet_grid_for_box`]),
     /// threshold depth at [`DensityThreshold::DEFAULT`], no `m` sweep, the prior's defaults,
     /// models not saved, curve points every 1/20 of the steps, the background trained for
     /// [`BACKGROUND_STEP_FACTOR`](crate::train::trainer::BACKGROUND_STEP_FACTOR) times the steps.
     pub fn new(train: TrainConfig, field: NerfConfig) -> CompareConfig {
         CompareConfig {
+            mixnet_grid: crate::train::sizing::mixnet_grid_for_box(&field.aabb),
             eval_every: (train.steps / 20).max(1),
             background_steps: crate::train::trainer::BACKGROUND_STEP_FACTOR * train.steps,
             train,
             field,
-            mixnet_grid: crate::field::mixnet::default_mixnet_grid(),
             m: DensityThreshold::DEFAULT,
             m_sweep: Vec::new(),
             prior: Default::default(),

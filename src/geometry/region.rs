@@ -10,9 +10,9 @@
 use super::Aabb;
 use glam::Vec3;
 
-/// The finest region a model file holds: its cells' indices are stored as f32, exact up to
-/// 2^24, so at most 256³ cells ([`crate::train::prior::PriorConfig::region_subdivide`] stops there).
-pub const MAX_RESOLUTION: u32 = 256;
+/// The finest region a model file holds, 512³ cells (a 16-MiB bit set;
+/// [`crate::train::prior::PriorConfig::region_subdivide`] stops there).
+pub const MAX_RESOLUTION: u32 = 512;
 
 /// A set of cells of a `resolution³` grid over `aabb` (cell `x + r·(y + r·z)`, x fastest, as
 /// the occupancy grid, or a grid a whole number of times finer:

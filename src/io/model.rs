@@ -330,17 +330,29 @@ impl ModelFile for ResidualField {
         }
         w.mlp("mixnet", params.mixnet.mlp.weights(), mixnet.mlp().layers())?;
         if let Some(region) = self.region() {
-            // Cell indices (< 1024³ ≤ 2^30; exact in f32 up to 2^24, so the grid is limited to
-            // 256³ here, twice the default 128).
+            // Up to 256³ cells the indices (exact in f32 up to 2^24), a finer region its cells'
+            // coordinates, one row of three per cell (each below 512).
             if region.resolution() > crate::geometry::region::MAX_RESOLUTION {
                 return Err(format!(
-                    "change region of {}^3 cells: model files hold at most 256^3",
-                    region.resolution()
+                    "change region of {}^3 cells: model files hold at most {}^3",
+                    region.resolution(),
+                    crate::geometry::region::MAX_RESOLUTION
                 ));
             }
             w.meta("region_resolution", &region.resolution().to_string());
-            let cells: Vec<f32> = region.cells().iter().map(|&c| c as f32).collect();
-            w.tensor("region.cells", vec![cells.len()], &cells)?;
+            let cells = region.cells();
+            match region.resolution() <= INDEXED_REGION {
+                true => {
+                    let cells: Vec<f32> = cells.iter().map(|&c| c as f32).collect();
+                    w.tensor("region.cells", vec![cells.len()], &cells)?;
+                }
+                false => {
+                    let r = region.resolution();
+                    let xyz: Vec<f32> =
+                        cells.iter().flat_map(|&c| [c % r, c / r % r, c / (r * r)]).map(|v| v as f32).collect();
+                    w.tensor("region.cells", vec![cells.len(), 3], &xyz)?;
+                }
+            }
             if occupancy.is_frozen_outside_pins() {
                 w.meta("occupancy_frozen_outside_region", "true");
             }
@@ -495,29 +507,47 @@ fn residual_from(r: &ModelReader<'_>, background: Nerf, res: Nerf, kind: MixKind
 
 /// The change region of a residual model file (`region_resolution` metadata, `region.cells`).
 fn read_region(r: &ModelReader<'_>, resolution: &str, field: &ResidualField) -> Result<ChangeRegion, String> {
+    let max = crate::geometry::region::MAX_RESOLUTION;
     let res: u32 = resolution
         .parse()
         .ok()
-        .filter(|v| (1..=256).contains(v))
-        .ok_or_else(|| format!("metadata 'region_resolution' = '{resolution}' is not 1..=256"))?;
+        .filter(|v| (1..=max).contains(v))
+        .ok_or_else(|| format!("metadata 'region_resolution' = '{resolution}' is not 1..={max}"))?;
     if !matches!(field.kind(), MixKind::Mixnet(_)) {
         return Err("a change region needs a Mixnet ('mix' is 'sum')".into());
     }
     let shape = r.shape("region.cells")?;
-    if shape.len() != 1 {
-        return Err(format!("tensor 'region.cells' has shape {shape:?}, expected one dimension"));
+    // Indices up to 256³ cells, coordinates (rows of three) above.
+    let indexed = res <= INDEXED_REGION;
+    let fits = match indexed {
+        true => shape.len() == 1,
+        false => shape.len() == 2 && shape[1] == 3,
+    };
+    if !fits {
+        let expected = if indexed { "one dimension" } else { "rows of 3 coordinates" };
+        return Err(format!("tensor 'region.cells' has shape {shape:?}, expected {expected} for {res}^3 cells"));
     }
     let values = r.tensor("region.cells", &shape)?;
-    let mut cells = Vec::with_capacity(values.len());
-    for (i, v) in values.iter().enumerate() {
-        if !(v.is_finite() && *v >= 0.0 && v.fract() == 0.0) {
-            return Err(format!("tensor 'region.cells' holds {v} at {i}, not a cell index"));
+    let what = if indexed { "cell index" } else { "cell coordinate" };
+    let below = if indexed { (res as u64).pow(3) } else { res as u64 };
+    let mut whole = Vec::with_capacity(values.len());
+    for (i, &v) in values.iter().enumerate() {
+        if !(v.is_finite() && v >= 0.0 && v.fract() == 0.0 && (v as u64) < below) {
+            return Err(format!("tensor 'region.cells' holds {v} at {i}, not a {what} of the {res}^3 grid"));
         }
-        cells.push(*v as u32);
+        whole.push(v as u32);
     }
+    let cells = match indexed {
+        true => whole,
+        false => whole.chunks_exact(3).map(|c| c[0] + res * (c[1] + res * c[2])).collect(),
+    };
     let aabb = field.residual().config().aabb;
     ChangeRegion::from_cells(aabb, res, &cells).map_err(|e| format!("tensor 'region.cells': {e}"))
 }
+
+/// The finest change region a model file stores as cell indices (f32, exact up to 2^24); a
+/// finer one is stored as its cells' coordinates.
+const INDEXED_REGION: u32 = 256;
 
 /// Loads a model of either kind; errors name the file.
 pub fn load_model(path: &Path) -> Result<LoadedModel, Error> {

@@ -12,6 +12,7 @@ mod pool;
 pub mod prior;
 pub mod register;
 pub mod scene;
+pub mod sizing;
 mod step;
 pub mod trainer;
 

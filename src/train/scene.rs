@@ -184,7 +184,7 @@ pub fn train_scene(
     let config = ResidualConfig {
         residual: background.field.config().clone(),
         kind: MixKind::Mixnet(DensityMix::Raw),
-        mixnet: MixnetEncoding::default(),
+        mixnet: MixnetEncoding::Own(crate::train::sizing::mixnet_grid_for_box(&background.field.config().aabb)),
     };
     let mut start = residual_start(isa, background, config, Prior::ALL, Some(&prior), cfg, pcfg);
     let cfg = start.train_config(cfg);
