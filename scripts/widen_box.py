@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """A capture whose scene box is K times wider about its centre, the images and truth unchanged:
-what a room K times larger does to a NeRF's sampling (the marching step, the occupancy cells
-and the hash grid's cells all scale with the box) while the glass and its views stay the same.
+what a room K times larger does to a NeRF's sampling while the glass and its views stay the same
+(the occupancy grid's and the change region's cells scale with the box; the march's step and the
+hash grids' finest cells do too up to the dev box's size, and stay as many millimetres beyond it:
+`train::sizing`).
 
 Every json of each scene gets `aabb` scaled by K about the box's centre; the image, depth and
 mask files are symbolic links to the originals (absolute paths), so the copy costs nothing.
