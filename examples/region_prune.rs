@@ -29,17 +29,6 @@ fn load(dir: &str, split: &str) -> Result<Dataset, String> {
     Dataset::load(Path::new(dir), split, &opts).map_err(|e| format!("{dir}: {e}"))
 }
 
-/// The region cell holding world point `p`, if it lies in the box.
-fn cell_of(region: &ChangeRegion, p: glam::Vec3) -> Option<usize> {
-    let r = region.resolution();
-    let u = region.aabb().to_unit(p) * r as f32;
-    if !(u.x >= 0.0 && u.y >= 0.0 && u.z >= 0.0) {
-        return None;
-    }
-    let (x, y, z) = (u.x as u32, u.y as u32, u.z as u32);
-    (x < r && y < r && z < r).then(|| (x + r * (y + r * z)) as usize)
-}
-
 fn main() -> Result<(), String> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let usage =
@@ -68,6 +57,7 @@ fn main() -> Result<(), String> {
     let (mut render_r, mut render_b) = (ViewRenderer::new(), ViewRenderer::new());
     // The background's depth does not change between rounds.
     let mut bg_depth: Vec<Option<Vec<f32>>> = vec![None; train.views.len()];
+    let mut zr: Vec<f32> = Vec::new();
     println!("{model}: region {} cells", region0.count());
     for round in 0..rounds {
         let region = res.field.region().expect("kept").clone();
@@ -76,7 +66,7 @@ fn main() -> Result<(), String> {
         for (vi, v) in train.views.iter().enumerate().step_by(every.max(1)) {
             let k = &v.intrinsics;
             let (w, h) = (k.width as usize, k.height as usize);
-            let mut zr = vec![0.0; w * h];
+            zr.resize(w * h, 0.0);
             render_r.depth(isa, &rs, k, &v.pose, DensityThreshold::DEFAULT, &mut zr);
             let zb = bg_depth[vi].get_or_insert_with(|| {
                 let mut z = vec![0.0; w * h];
@@ -89,7 +79,7 @@ fn main() -> Result<(), String> {
                 }
                 let ray = pixel_ray(k, &v.pose, (p % w) as u32, (p / w) as u32);
                 let hit = ray.at(ray.z_to_range(zr[p]));
-                let Some(c) = cell_of(&region, hit).filter(|&c| region.has_cell(c)) else { continue };
+                let Some(c) = region.cell_at(hit).filter(|&c| region.has_cell(c)) else { continue };
                 if maps[vi][p] {
                     support[c] += 1;
                 } else if !zb[p].is_finite() || zr[p] < zb[p] - GROSS_ERROR {
@@ -106,10 +96,10 @@ fn main() -> Result<(), String> {
             })
             .collect();
         let (n_sup, n_con) = (support.iter().filter(|&&s| s > 0).count(), contra.iter().filter(|&&s| s > 0).count());
+        let before = region.count();
         println!(
-            "round {round}: cells hit by changed pixels {n_sup}, by unchanged pixels in front of the background {n_con}; pruned {} of {}",
-            region.count() - kept.len(),
-            region.count()
+            "round {round}: cells hit by changed pixels {n_sup}, by unchanged pixels in front of the background {n_con}; pruned {} of {before}",
+            before - kept.len()
         );
         let pruned = ChangeRegion::from_cells(*region.aabb(), region.resolution(), &kept)?;
         res.field = res.field.clone().with_region(pruned);

@@ -71,19 +71,23 @@ impl ChangeRegion {
         self.bits[i / 64] >> (i % 64) & 1 == 1
     }
 
-    /// Whether world point `p` lies in a cell of the region (points outside the box never do).
+    /// The cell of the grid holding world point `p`, in the region or not (`None` outside the
+    /// box).
     #[inline]
-    pub fn contains(&self, p: Vec3) -> bool {
+    pub fn cell_at(&self, p: Vec3) -> Option<usize> {
         let u = self.aabb.to_unit(p) * self.resolution as f32;
         if !(u.x >= 0.0 && u.y >= 0.0 && u.z >= 0.0) {
-            return false;
+            return None;
         }
         let r = self.resolution;
         let (x, y, z) = (u.x as u32, u.y as u32, u.z as u32);
-        if x >= r || y >= r || z >= r {
-            return false;
-        }
-        self.has_cell((x + r * (y + r * z)) as usize)
+        (x < r && y < r && z < r).then(|| (x + r * (y + r * z)) as usize)
+    }
+
+    /// Whether world point `p` lies in a cell of the region (points outside the box never do).
+    #[inline]
+    pub fn contains(&self, p: Vec3) -> bool {
+        self.cell_at(p).is_some_and(|i| self.has_cell(i))
     }
 
     /// The region's cells in increasing order.
