@@ -4,8 +4,10 @@
 //! rates (prediction nearer / farther than the truth by 2 cm). Scored like `rnerf eval`
 //! (threshold depth σ ≥ 10/m, the frames' crops, the near limit 1.5 m, holes as depth 0, each
 //! band an [`eval::DepthErrors`](residual_nerf::eval::DepthErrors) as `rnerf eval`'s), and
-//! the 1-px ring split by the side its mask neighbour lies on. With a second model (e.g. the
-//! background), the same for it.
+//! the 1-px ring split by the side its mask neighbour lies on, and the deep floaters outside the
+//! mask (10 cm or more in front of the truth): their share of the squared error, how far from
+//! the camera they lie and in how many views. With a second model (e.g. the background), the
+//! same for it.
 //!
 //! With `--images`, no model: how far beyond the mask the scene's images differ from the
 //! background's image at the same pose. Every pixel of each test view with a background test
@@ -42,11 +44,36 @@ fn label(b: usize) -> String {
     }
 }
 
+/// How far in front of the truth a deep floater lies (metres).
+const DEEP: f32 = 0.1;
+
+/// A deep floater nearer the camera than this (metres) is counted apart: nearer than any glass
+/// of the dev scenes (0.375 m at the least), it is a floater in front of a camera.
+const CAMERA_NEAR: f32 = 0.3;
+
+/// Near-crop pixels outside the mask whose depth lies [`DEEP`] or more in front of the truth.
+#[derive(Default)]
+struct DeepFloaters {
+    /// Their squared error, summed.
+    sq_sum: f64,
+    /// The same of those nearer the camera than [`CAMERA_NEAR`].
+    near_sq_sum: f64,
+    /// Their predicted z-depth (from the camera).
+    depth: Vec<f32>,
+    /// Test views holding at least one.
+    views: usize,
+}
+
 /// The bands, then the 1-px ring by the side its mask neighbour lies on (left, right, above,
-/// below; a pixel with several counts on each).
-fn bands<M: Model>(isa: Isa, scene: &Scene<'_, M>, test: &Dataset) -> (Vec<DepthErrors>, [DepthErrors; 4]) {
+/// below; a pixel with several counts on each), then the deep floaters outside the mask.
+fn bands<M: Model>(
+    isa: Isa,
+    scene: &Scene<'_, M>,
+    test: &Dataset,
+) -> (Vec<DepthErrors>, [DepthErrors; 4], DeepFloaters) {
     let mut out = vec![DepthErrors::default(); BANDS.len() + 1];
     let mut sides = [DepthErrors::default(); 4];
+    let mut deep = DeepFloaters::default();
     let mut renderer = ViewRenderer::new();
     for (v, f) in test.views.iter().zip(&test.frames) {
         let k = &v.intrinsics;
@@ -55,6 +82,7 @@ fn bands<M: Model>(isa: Isa, scene: &Scene<'_, M>, test: &Dataset) -> (Vec<Depth
         let mut z = vec![0.0; w * h];
         renderer.depth(isa, scene, k, &v.pose, DensityThreshold::Sigma(10.0), &mut z);
         let dist = mask_distance(mask, w, h);
+        let before = deep.depth.len();
         for y in crop[1] as usize..crop[3] as usize {
             for x in crop[0] as usize..crop[2] as usize {
                 let p = y * w + x;
@@ -64,6 +92,14 @@ fn bands<M: Model>(isa: Isa, scene: &Scene<'_, M>, test: &Dataset) -> (Vec<Depth
                 }
                 let b = BANDS.iter().position(|&e| dist[p] <= e).unwrap_or(BANDS.len());
                 out[b].add_pixel(z[p], t);
+                if b > 0 && z[p] <= t - DEEP {
+                    let e = ((z[p] - t) as f64).powi(2);
+                    deep.sq_sum += e;
+                    if z[p] < CAMERA_NEAR {
+                        deep.near_sq_sum += e;
+                    }
+                    deep.depth.push(z[p]);
+                }
                 if b == 1 {
                     let near = [
                         (x > 0, p.wrapping_sub(1)),
@@ -79,8 +115,9 @@ fn bands<M: Model>(isa: Isa, scene: &Scene<'_, M>, test: &Dataset) -> (Vec<Depth
                 }
             }
         }
+        deep.views += usize::from(deep.depth.len() > before);
     }
-    (out, sides)
+    (out, sides, deep)
 }
 
 fn print(name: &str, b: &[DepthErrors]) {
@@ -166,7 +203,7 @@ fn main() -> Result<(), String> {
     let isa = Isa::detect();
     let test = Dataset::load(Path::new(dir), "test", &LoadOptions::default()).map_err(|e| format!("{dir}: {e}"))?;
     for path in std::iter::once(model).chain(background) {
-        let (b, sides) = match load_model(Path::new(path)).map_err(|e| e.to_string())? {
+        let (b, sides, mut deep) = match load_model(Path::new(path)).map_err(|e| e.to_string())? {
             LoadedModel::Nerf(n) => bands(isa, &Scene::from(&*n), &test),
             LoadedModel::Residual(r) => bands(isa, &Scene::from(&*r), &test),
         };
@@ -178,6 +215,23 @@ fn main() -> Result<(), String> {
             side(&sides[1]),
             side(&sides[2]),
             side(&sides[3])
+        );
+        let all = b.iter().fold(DepthErrors::default(), |a, x| a.merged(x));
+        let n = deep.depth.len();
+        let near = deep.depth.iter().filter(|&&d| d < CAMERA_NEAR).count();
+        println!(
+            "floaters {DEEP} m or more in front of the truth outside the mask: {n} pixels ({:.2}% of the near crop), \
+             {:.1}% of its squared error, in {} of {} views; their depth from the camera: median {:.3} m, \
+             10th–90th percentiles {:.3}–{:.3} m; nearer than {CAMERA_NEAR} m: {near} pixels, {:.1}% of the \
+             squared error",
+            100.0 * n as f64 / all.pixels.max(1) as f64,
+            100.0 * deep.sq_sum / all.sq_sum.max(f64::MIN_POSITIVE),
+            deep.views,
+            test.views.len(),
+            quantile(&mut deep.depth, 0.5),
+            quantile(&mut deep.depth, 0.1),
+            quantile(&mut deep.depth, 0.9),
+            100.0 * deep.near_sq_sum / all.sq_sum.max(f64::MIN_POSITIVE)
         );
     }
     Ok(())
