@@ -1,61 +1,89 @@
 #!/usr/bin/env python3
 """The default Residual-NeRF's figures over backgrounds trained with different seeds.
 
-usage: scripts/background_spread.py DIR0:NAME0 DIR1:NAME1 DIR2:NAME2 [--dex DEX_MEANS]
+usage: scripts/background_spread.py DIR0:NAME0 DIR1:NAME1 DIR2:NAME2
+           [--dex DIR] [--dex-v25 DIR] [--dex-evals DIR:NAME]
 
 Each DIRb:NAMEb holds `scripts/residual_variant.sh` outputs (SCENE_NAME_sSEED.eval.json and,
 for 25 views, SCENE_NAME-v25_sSEED.eval.json) of the default residual over background b.
 Prints, for 100 and 25 views, three-scene means of object MAE / near-crop RMSE (m): over each
 background at scene seed 0 (the background's effect alone), and with the background's seed and
 the scene's seed varied together (background b, scene seed b), each with its ratio to
-Dex-NeRF's three-scene means at that scene seed (DEX_MEANS: the JSON file
-{"100": [[obj, near] per seed], "25": [...]}; the default is RESULTS.md's Dex-NeRF rows).
+Dex-NeRF's three-scene means at that scene seed.
+
+Dex-NeRF's figures are the last `dex` row of its `rnerf compare` curves, as
+`scripts/variant_table.py --dex` reads them: DIR/SCENE_seedS_curves.csv at 100 views (default
+results/time_to_quality, RESULTS.md's Dex-NeRF rows) and DIR/SCENE_views25_rays512_seedS_curves.csv
+at 25 (default results/capture_rays/dex_views25). `--dex-evals DIR:NAME` takes them from
+`rnerf eval --json` outputs DIR/SCENE_NAME_sS.eval.json instead, at 100 views only (25 views are
+then not printed).
 """
+import csv
 import json
+import os
 import sys
 
 SCENES = ["glass_up", "bottle", "wine_flat"]
-DEX = {  # RESULTS.md, "The default ...": Dex-NeRF's three-scene means, seeds 0, 1, 2
-    "100": [[0.0237, 0.0695], [0.0327, 0.0823], [0.0232, 0.0675]],
-    "25": [[0.0661, 0.1255], [0.0717, 0.1385], [0.1559, 0.2495]],
-}
 
 
-def figures(d, name, seed):
-    per = []
-    for s in SCENES:
-        r = json.load(open(f"{d}/{s}_{name}_s{seed}.eval.json"))["regions"]
-        per.append((r["object"]["mae"], r["near_crop"]["rmse"]))
-    mean = [sum(p[i] for p in per) / len(per) for i in range(2)]
-    return per, mean
+def take(args, flag, default):
+    if flag in args:
+        i = args.index(flag)
+        value = args[i + 1]
+        del args[i:i + 2]
+        return value
+    return default
 
 
-def main(argv):
-    dex = DEX
-    if "--dex" in argv:
-        i = argv.index("--dex")
-        dex = json.load(open(argv[i + 1]))
-        argv = argv[:i] + argv[i + 2:]
-    bgs = [a.split(":") for a in argv]
+def eval_figures(path):
+    r = json.load(open(path))["regions"]
+    return r["object"]["mae"], r["near_crop"]["rmse"]
+
+
+def curves_figures(path):
+    rows = [r for r in csv.DictReader(open(path)) if r["method"] == "dex"]
+    return float(rows[-1]["object_mae"]), float(rows[-1]["near_rmse"])
+
+
+def mean(per):
+    return [sum(p[i] for p in per) / len(per) for i in range(2)]
+
+
+def main(args):
+    dex100 = take(args, "--dex", "results/time_to_quality")
+    dex25 = take(args, "--dex-v25", "results/capture_rays/dex_views25")
+    dex_evals = take(args, "--dex-evals", None)
+    if dex_evals:
+        ddir, dname = dex_evals.split(":")
+        dex = {"100": lambda sc, s: eval_figures(f"{ddir}/{sc}_{dname}_s{s}.eval.json")}
+    else:
+        dex = {
+            "100": lambda sc, s: curves_figures(f"{dex100}/{sc}_seed{s}_curves.csv"),
+            "25": lambda sc, s: curves_figures(f"{dex25}/{sc}_views25_rays512_seed{s}_curves.csv"),
+        }
+    bgs = [a.split(":") for a in args]
     for views, suffix in (("100", ""), ("25", "-v25")):
+        if views not in dex:
+            continue
         print(f"## {views} views")
         print("| background | scene seed | glass_up | bottle | wine_flat | mean | / Dex-NeRF |")
         print("|---|---|---|---|---|---|---|")
-        rows = {"fixed": [], "paired": []}
+        fixed, paired = [], []
         for b, (d, name) in enumerate(bgs):
-            for seed, kind in ((0, "fixed"), (b, "paired")):
-                if kind == "paired" and b == 0:
-                    continue  # the same run as the fixed one
-                per, mean = figures(d, name + suffix, seed)
-                ratio = [mean[i] / dex[views][seed][i] for i in range(2)]
-                rows[kind].append(ratio)
-                if b == 0:
-                    rows["paired"].append(ratio)
+            # Scene seed 0, then the background's own seed (the same run for background 0).
+            for seed in sorted({0, b}):
+                per = [eval_figures(f"{d}/{sc}_{name}{suffix}_s{seed}.eval.json") for sc in SCENES]
+                m = mean(per)
+                dm = mean([dex[views](sc, seed) for sc in SCENES])
+                ratio = [m[i] / dm[i] for i in range(2)]
+                if seed == 0:
+                    fixed.append(ratio)
+                if seed == b:
+                    paired.append(ratio)
                 cells = " | ".join(f"{o:.4f} / {n:.4f}" for o, n in per)
-                print(f"| {b} | {seed} | {cells} | {mean[0]:.4f} / {mean[1]:.4f} | {ratio[0]:.2f}× / {ratio[1]:.2f}× |")
-        for kind, label in (("fixed", "scene seed 0, backgrounds 0-2"), ("paired", "background seed = scene seed, 0-2")):
-            r = rows[kind]
-            m = [sum(x[i] for x in r) / len(r) for i in range(2)]
+                print(f"| {b} | {seed} | {cells} | {m[0]:.4f} / {m[1]:.4f} | {ratio[0]:.2f}× / {ratio[1]:.2f}× |")
+        for r, label in ((fixed, "scene seed 0, backgrounds 0-2"), (paired, "background seed = scene seed, 0-2")):
+            m = mean(r)
             lo = [min(x[i] for x in r) for i in range(2)]
             hi = [max(x[i] for x in r) for i in range(2)]
             print(f"\n{label}: mean of the ratios {m[0]:.2f}× / {m[1]:.2f}× "
