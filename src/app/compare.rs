@@ -114,6 +114,7 @@ pub(super) fn run(a: &crate::cli::CompareArgs) -> Result<(), String> {
     train.pixel_jitter = a.pixel_jitter.unwrap_or(train.pixel_jitter);
     train.photo_tail = a.photo_tail.unwrap_or(train.photo_tail);
     train.pixel_rays = a.pixel_rays.unwrap_or(train.pixel_rays);
+    train.near_gradient = crate::train::trainer::NearGradient::from_flag(a.near_grad, train.near_gradient);
     let mut cfg = CompareConfig::new(train, NerfConfig { grid, aabb });
     cfg.eval_every = a.eval_every.unwrap_or(cfg.eval_every);
     cfg.background_steps = a.background_steps.unwrap_or(cfg.background_steps);

@@ -17,7 +17,7 @@ use crate::simd::Isa;
 use crate::train::prior::{residual_start, scene_prior, ColourCorrection, Prior};
 use crate::train::register::{registration_passes, Registration};
 use crate::train::sizing;
-use crate::train::trainer::{TrainConfig, Trainer, BACKGROUND_STEP_FACTOR};
+use crate::train::trainer::{NearGradient, TrainConfig, Trainer, BACKGROUND_STEP_FACTOR};
 use signal_hook::consts::{SIGINT, SIGTERM};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -181,7 +181,7 @@ fn fresh(a: &TrainArgs, deadline: Deadline) -> Result<(), Failure> {
     let field = NerfConfig { grid, aabb: data.aabb };
     cfg.distortion = a.distortion.unwrap_or(cfg.distortion);
     cfg.schedule.base = a.lr.unwrap_or(cfg.schedule.base);
-    cfg.near_gradient_distance = a.near_grad.unwrap_or(cfg.near_gradient_distance);
+    cfg.near_gradient = NearGradient::from_flag(a.near_grad, cfg.near_gradient);
     cfg.random_background &= a.random_bg.unwrap_or(true);
     cfg.frozen_stride = a.frozen_stride.unwrap_or(cfg.frozen_stride);
     cfg.frozen_tail = a.frozen_tail.unwrap_or(cfg.frozen_tail);
@@ -422,7 +422,7 @@ fn run_metadata(
         ("train_distortion", cfg.distortion.to_string()),
         ("train_lr", cfg.schedule.base.to_string()),
         ("train_random_background", cfg.random_background.to_string()),
-        ("train_near_gradient_distance", cfg.near_gradient_distance.to_string()),
+        ("train_near_gradient", format!("{:?}", cfg.near_gradient)),
         ("train_frozen_stride", cfg.frozen_stride.to_string()),
         ("train_frozen_tail", cfg.frozen_tail.to_string()),
         ("train_frozen_coarse", format!("{},{}", cfg.frozen_coarse, cfg.frozen_coarse_stride)),
@@ -545,6 +545,13 @@ fn drive<M: ModelFile>(
             .map_err(|e| format!("cannot install the signal handler: {e}"))?;
     }
     let cfg = trainer.config().clone();
+    let near = trainer.near_distance();
+    if near > 0.0 {
+        eprintln!("rnerf train: gradients scaled down within {near} of each camera ({:?})", cfg.near_gradient);
+    }
+    let mut extra = extra.to_vec();
+    extra.push(("train_near_gradient_distance", near.to_string()));
+    let extra = &extra[..];
     let ckpt = checkpoint_path(&a.out);
     let fingerprint = views_fingerprint(trainer.views());
     let save_checkpoint_now = |trainer: &Trainer<'_, M>| -> Result<(), String> {

@@ -138,7 +138,8 @@ pub struct TrainArgs {
     pub distortion: Option<f32>,
     /// Base learning rate (`--lr`).
     pub lr: Option<f32>,
-    /// Near-camera gradient scaling distance (`--near-grad`, 0 turns it off).
+    /// Near-camera gradient scaling distance (`--near-grad`, 0 turns it off); `None`: the
+    /// default, half the training cameras' distance to what they look at.
     pub near_grad: Option<f32>,
     /// `Some(false)`: train over the fixed background colour even for images without
     /// alpha (`--fixed-background`).
@@ -253,6 +254,9 @@ pub struct CompareArgs {
     pub pixel_jitter: Option<bool>,
     /// Every method's rays per training pixel (`--pixel-rays K`); `None`: the default.
     pub pixel_rays: Option<u32>,
+    /// Every training's near-camera gradient scaling distance (`--near-grad D`, 0 turns it
+    /// off); `None`: the default (half the cameras' distance to what they look at).
+    pub near_grad: Option<f32>,
 }
 
 /// The background prior's settings `rnerf train` and `rnerf compare` share; each `None` keeps

@@ -36,7 +36,7 @@ pub(super) const FLAGS: &[Flag] = &[
     Flag { name: "mixnet-encoding", commands: &["train"], setting: true },
     Flag { name: "distortion", commands: &["train"], setting: true },
     Flag { name: "lr", commands: &["train"], setting: true },
-    Flag { name: "near-grad", commands: &["train"], setting: true },
+    Flag { name: "near-grad", commands: &["train", "compare"], setting: true },
     Flag { name: "fixed-background", commands: &["train"], setting: true },
     Flag { name: "checkpoint-every", commands: &["train"], setting: false },
     Flag { name: "budget", commands: &["train"], setting: false },

@@ -171,6 +171,7 @@ pub fn parse(args: impl IntoIterator<Item = OsString>) -> Result<Command, CliErr
             image_gains: f.image_gains,
             pixel_jitter: f.pixel_jitter,
             pixel_rays: f.pixel_rays,
+            near_grad: f.near_grad,
         }),
         "demo" => Command::Demo { out: f.out.clone(), steps: f.steps, size: f.size, seed: f.seed, threads },
         "import" => Command::ImportColmap(crate::data::colmap::ImportOptions {

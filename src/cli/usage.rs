@@ -22,6 +22,10 @@ commands:
          penalty on unchanged rays, entropy; --prior none: the paper's Residual-NeRF).
          --rays N: rays per step (default by the capture's size: 1024 from 2 M training pixels,
          e.g. 50 views of 200x200, in proportion below down to 512 at 1 M pixels and fewer).
+         --near-grad D: scale each sample's gradients by min(1, (t/D)^2), t its distance from
+         the camera, so density right in front of one camera learns slower than the scene
+         (default D: half the training cameras' median distance to the point they look at;
+         0: off).
          A NeRF with --pose-registration on (for a background whose poses came from a robot
          arm): a first NeRF, every image's pose registered against it, N times (default 1),
          then the run at the registered poses. --image-gains on: learn a gain per image and
@@ -70,7 +74,7 @@ commands:
          [--log2t N] [--seed S] [--eval-every N] [--background-steps N] [--m M | --m-raw S] [--m-sweep M,M,...] [--threads N]
          [--beta U,E] [--beta-fill R] [--beta-margin N] [--region-floor S|off] [--focus-share F] [--region-vote V,S] [--region-dilate N] [--region-subdivide K] [--change-tolerance T[,R]]
          [--frozen-stride N] [--frozen-tail T] [--frozen-coarse T,N|off] [--photo-tail on|off] [--ray-pool N] [--exposure-correction on|off] [--pose-registration on|off]
-         [--image-gains on|off] [--pixel-jitter on|off] [--pixel-rays K]
+         [--image-gains on|off] [--pixel-jitter on|off] [--pixel-rays K] [--near-grad D]
          (--rays: every run's rays per step, default each run's own capture's as for train;
          --background-steps: the background's training steps when no --background-model is
          given, default 3 x --steps (it is trained once, offline; 3000 at the defaults);
@@ -81,6 +85,7 @@ commands:
          --region-floor: lift the warm-started residual's raw density in the change region to at
          least S before training (σ = e^S per metre), default off;
          --focus-share: share of each step's rays drawn from changed pixels, default 0.5;
+         --near-grad: every training's near-camera gradient scaling, as for train;
          --region-vote: a cell is in the change region when at least S of all views see it and
          at least V of those see a change there, default 0.75,0.25;
          --region-dilate: cells the voted region grows by, default 1;

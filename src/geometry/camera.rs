@@ -14,7 +14,7 @@
 //! `(x, y, −1)`.
 
 use super::distortion::Distortion;
-use glam::{DVec3, Mat3, Vec3};
+use glam::{DMat3, DVec3, Mat3, Vec3};
 
 /// Intrinsics in pixels: a pinhole camera and its lens distortion.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -141,6 +141,40 @@ impl Pose {
     }
 }
 
+/// The point a capture's cameras look at: the least-squares point nearest to every camera's
+/// viewing axis (each camera's centre along [`Pose::forward`]), computed in f64. `None` when
+/// the axes pin no point (fewer than two cameras, or axes within a few degrees of parallel, as
+/// in a forward-facing capture) or when the point lies behind most of the cameras.
+pub fn capture_focus(poses: &[Pose]) -> Option<Vec3> {
+    let (mut a, mut b) = (DMat3::ZERO, DVec3::ZERO);
+    for p in poses {
+        let d = p.forward().as_dvec3().normalize();
+        // I − d dᵀ: the projection onto the plane across the axis.
+        let m = DMat3::IDENTITY - DMat3::from_cols(d * d.x, d * d.y, d * d.z);
+        a += m;
+        b += m * p.translation.as_dvec3();
+    }
+    let n = poses.len() as f64;
+    // The eigenvalues of `a` lie in [0, n]; their product well below (0.01 n)³ means axes
+    // within a few degrees of one direction.
+    let det = a.determinant();
+    if poses.len() < 2 || det.is_nan() || det <= 1e-6 * n * n * n {
+        return None;
+    }
+    let focus = a.inverse() * b;
+    let mut ahead: Vec<f64> =
+        poses.iter().map(|p| (focus - p.translation.as_dvec3()).dot(p.forward().as_dvec3())).collect();
+    ahead.sort_by(f64::total_cmp);
+    (focus.is_finite() && ahead[ahead.len() / 2] > 0.0).then(|| focus.as_vec3())
+}
+
+/// The median distance from the cameras' centres to `point`.
+pub fn median_distance(poses: &[Pose], point: Vec3) -> f32 {
+    let mut d: Vec<f32> = poses.iter().map(|p| p.translation.distance(point)).collect();
+    d.sort_by(f32::total_cmp);
+    d.get(d.len() / 2).copied().unwrap_or(0.0)
+}
+
 /// A ray with unit direction.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Ray {
@@ -211,5 +245,52 @@ impl DepthKind {
             DepthKind::Z => "z",
             DepthKind::Range => "range",
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Cameras on a ring of `radius` around `target`, at elevations 25–75°, looking at it.
+    fn ring(target: Vec3, radius: f32, n: usize) -> Vec<Pose> {
+        (0..n)
+            .map(|i| {
+                let (az, el) = (i as f32 * 2.4, (25.0 + 50.0 * (i as f32 * 0.37).fract()).to_radians());
+                let eye = target + radius * Vec3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin());
+                Pose::look_at(eye, target)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_ring_of_cameras_focuses_on_what_it_looks_at() {
+        let target = Vec3::new(0.3, -0.2, 0.05);
+        let poses = ring(target, 0.62, 40);
+        let focus = capture_focus(&poses).expect("a ring pins its focus");
+        assert!(focus.distance(target) < 1e-4, "{focus} against {target}");
+        assert!((median_distance(&poses, focus) - 0.62).abs() < 1e-4);
+        // Cameras that do not all aim exactly at one point: the nearest point to their axes.
+        let mut off = poses.clone();
+        off[0] = Pose::look_at(off[0].translation, target + Vec3::new(0.05, 0.0, 0.0));
+        assert!(capture_focus(&off).unwrap().distance(target) < 0.01);
+    }
+
+    #[test]
+    fn parallel_or_outward_axes_pin_no_focus() {
+        // A forward-facing capture: every camera looks along −Y from a plane.
+        let forward: Vec<Pose> = (0..9)
+            .map(|i| {
+                let eye = Vec3::new((i % 3) as f32 * 0.1, 0.0, (i / 3) as f32 * 0.1);
+                Pose::look_at(eye, eye - Vec3::Y)
+            })
+            .collect();
+        assert_eq!(capture_focus(&forward), None);
+        // Cameras on a ring looking outwards: their axes meet behind them.
+        let outward: Vec<Pose> =
+            ring(Vec3::ZERO, 1.0, 12).iter().map(|p| Pose::look_at(p.translation, 2.0 * p.translation)).collect();
+        assert_eq!(capture_focus(&outward), None);
+        assert_eq!(capture_focus(&outward[..1]), None);
+        assert_eq!(capture_focus(&[]), None);
     }
 }

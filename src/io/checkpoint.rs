@@ -25,7 +25,7 @@ use crate::data::View;
 use crate::field::model::Model;
 use crate::render::{OccupancyConfig, OccupancyGrid};
 use crate::train::gains::ImageGains;
-use crate::train::trainer::{TrainConfig, TrainState};
+use crate::train::trainer::{NearGradient, TrainConfig, TrainState};
 use crate::train::{Adam, AdamConfig, LrSchedule};
 use serde_json::{json, Value};
 use std::path::Path;
@@ -355,7 +355,9 @@ pub fn train_config_json(c: &TrainConfig) -> Value {
         },
         "occupancy_interval": c.occupancy_interval,
         "background": c.background, "random_background": c.random_background,
-        "seed": c.seed, "distortion": c.distortion, "near_gradient_distance": c.near_gradient_distance,
+        "seed": c.seed, "distortion": c.distortion,
+        "near_gradient_distance": match c.near_gradient { NearGradient::Distance(d) => d, _ => 0.0 },
+        "near_gradient_share": match c.near_gradient { NearGradient::OfCapture(s) => Some(s), _ => None },
         "beta_unchanged": c.beta.unchanged, "beta_entropy": c.beta.entropy, "beta_entropy_from": c.beta.entropy_from,
         "frozen_stride": c.frozen_stride, "image_gains": c.image_gains, "error_map": c.error_map,
         "pixel_jitter": c.pixel_jitter, "pixel_rays": c.pixel_rays, "ray_pool": c.ray_pool,
@@ -409,7 +411,14 @@ pub fn parse_train_config(v: &Value, occupancy: OccupancyConfig) -> Result<Train
             .ok_or("'random_background' not a bool")?,
         seed: uint(v, "seed", 0, u64::MAX)?,
         distortion: real(v, "distortion", 0.0, 1e6)?,
-        near_gradient_distance: real(v, "near_gradient_distance", 0.0, 1e6)?,
+        // The share was added later: absent or null means the distance (0: off).
+        near_gradient: match v.get("near_gradient_share") {
+            None | Some(Value::Null) => match real(v, "near_gradient_distance", 0.0, 1e6)? {
+                0.0 => NearGradient::Off,
+                d => NearGradient::Distance(d),
+            },
+            Some(_) => NearGradient::OfCapture(real(v, "near_gradient_share", 0.0, 1e3)?),
+        },
         // The focus pixels are tensors beside this JSON ([`read_checkpoint`] reads them).
         focus: None,
         beta: crate::train::beta::BetaRegulariser {

@@ -446,6 +446,7 @@ mod tests {
                 cfg,
                 entropy: 0.1,
                 gains: &[],
+                near_distance: 0.0,
             };
             let mut workers: Vec<Worker<_>> = (0..SLOTS).map(|_| Worker::default()).collect();
             workers.iter_mut().for_each(|w| w.segment = fresh.unwrap_or(RAY_SEGMENT));

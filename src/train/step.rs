@@ -17,7 +17,7 @@ use crate::render::{composite_ray, composite_ray_backward, OccupancyGrid, Packed
 use crate::simd::Isa;
 use glam::Vec3;
 
-/// Scales each sample's gradients by `min(1, (t / distance)²)` ([`TrainConfig::near_gradient_distance`]).
+/// Scales each sample's gradients by `min(1, (t / distance)²)` ([`TrainConfig::near_gradient`]).
 pub fn scale_near_gradients(t: &[f32], distance: f32, d_sigma: &mut [f32], d_rgb: &mut [[f32; 3]]) {
     let inv = 1.0 / distance;
     for ((ds, dc), &t) in d_sigma.iter_mut().zip(d_rgb.iter_mut()).zip(t) {
@@ -326,6 +326,9 @@ pub(super) struct StepInputs<'a, M: Model> {
     pub(super) entropy: f32,
     /// Each training image's gain (empty: images taken as they are; [`crate::train::gains`]).
     pub(super) gains: &'a [[f32; 3]],
+    /// The near-camera gradient scaling's distance ([`super::trainer::Trainer::near_distance`];
+    /// 0: off).
+    pub(super) near_distance: f32,
 }
 
 impl<C> Worker<C> {
@@ -474,6 +477,9 @@ impl<C> Worker<C> {
             u.d_sigma.resize(count as usize, 0.0);
             u.d_rgb.resize(count as usize, [0.0; 3]);
             composite_ray_backward(sigma, delta, &u.rgb[r.clone()], &c, d_colour, &mut u.d_sigma, &mut u.d_rgb);
+            if x.near_distance > 0.0 {
+                scale_near_gradients(t, x.near_distance, &mut u.d_sigma, &mut u.d_rgb);
+            }
             let rows = &u.row[r.clone()];
             for (j, &kr) in rows.iter().enumerate().filter(|(_, &kr)| kr != OUTSIDE) {
                 self.d_sigma[kr as usize] = u.d_sigma[j];
@@ -711,8 +717,8 @@ impl<C> Worker<C> {
                     beta_terms(sigma, delta, &beta[r.clone()], unchanged, entropy, &mut d_beta[r.clone()]);
                 }
             }
-            if cfg.near_gradient_distance > 0.0 {
-                scale_near_gradients(t, cfg.near_gradient_distance, d_s, d_c);
+            if x.near_distance > 0.0 {
+                scale_near_gradients(t, x.near_distance, d_s, d_c);
             }
         }
         if k > 0 {

@@ -31,6 +31,7 @@ use crate::field::model::Model;
 use crate::field::residual::{ResidualConfig, ResidualField, ResidualModel};
 pub use crate::field::Nerf;
 use crate::field::{NerfConfig, NerfField};
+use crate::geometry::camera;
 use crate::render::{image_ray, pixel_ray, Aabb, OccupancyConfig, OccupancyGrid};
 use crate::rng::Rng;
 use crate::simd::Isa;
@@ -71,11 +72,11 @@ pub struct TrainConfig {
     /// Weight λ of the distortion loss (per ray, scene units; [`crate::render::distortion`]).
     /// Defaults to [`DISTORTION`].
     pub distortion: f32,
-    /// Distance (scene units) within which each sample's gradients are scaled down by
-    /// `(t / d)²` (Philip & Deschaintre 2023, "Floaters No More"): density right in front of a
-    /// training camera, which only that camera sees, learns slower than the scene. 0 turns it
-    /// off. Defaults to [`NEAR_GRADIENT_DISTANCE`].
-    pub near_gradient_distance: f32,
+    /// Where each sample's gradients are scaled down by `(t / d)²` (Philip & Deschaintre 2023,
+    /// "Floaters No More"): density right in front of a training camera, which only that camera
+    /// sees, learns slower than the scene. Defaults to [`NEAR_GRADIENT`]: `d` half the training
+    /// cameras' distance to the point they look at.
+    pub near_gradient: NearGradient,
     /// Pixels to draw a share of each step's rays from (a residual model's changed pixels,
     /// [`crate::train::prior`]). Defaults to none: every ray uniform over all pixels.
     pub focus: Option<Focus>,
@@ -132,8 +133,8 @@ pub struct TrainConfig {
     /// Times each training ray is drawn, on average, when the model is a frozen field outside
     /// a region whose occupancy grid is frozen there (the default residual method): a ray's
     /// samples outside the region are evaluated once and its rays are drawn from a pool
-    /// (`train::pool`); 0 or 1 draws every ray fresh. Needs no distortion loss, one ray per pixel, no
-    /// near-camera gradient scaling and no error map (otherwise every ray is fresh). Defaults
+    /// (`train::pool`); 0 or 1 draws every ray fresh. Needs no distortion loss, one ray per pixel
+    /// and no error map (otherwise every ray is fresh). Defaults
     /// to [`RAY_POOL`].
     pub ray_pool: u32,
     /// The photo tail: with a model frozen outside a region and [`Self::behind`], a training
@@ -167,8 +168,47 @@ pub struct Focus {
     pub spared: Option<std::sync::Arc<Vec<(u32, u32)>>>,
 }
 
-/// Default of [`TrainConfig::near_gradient_distance`] (chosen by measured depth; docs/DECISIONS.md).
-pub const NEAR_GRADIENT_DISTANCE: f32 = 0.0;
+/// The distance `d` within which [`TrainConfig::near_gradient`] scales each sample's gradients
+/// by `min(1, (t / d)²)`, `t` its distance from the camera.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum NearGradient {
+    /// No scaling.
+    Off,
+    /// `d` in scene units.
+    Distance(f32),
+    /// `d` this share of the training cameras' median distance to the point they look at
+    /// ([`crate::geometry::camera::capture_focus`]; the scene box's centre where the cameras'
+    /// axes pin no point), so it follows the capture's scale.
+    OfCapture(f32),
+}
+
+impl NearGradient {
+    /// The setting of `--near-grad D` (0: off) when given, else `default`.
+    pub fn from_flag(flag: Option<f32>, default: NearGradient) -> NearGradient {
+        match flag {
+            None => default,
+            Some(0.0) => NearGradient::Off,
+            Some(d) => NearGradient::Distance(d),
+        }
+    }
+
+    /// `d` for the training set `views` in the box `aabb` (0: off).
+    pub fn distance(&self, views: &[View], aabb: &Aabb) -> f32 {
+        match *self {
+            NearGradient::Off => 0.0,
+            NearGradient::Distance(d) => d,
+            NearGradient::OfCapture(share) => {
+                let poses: Vec<_> = views.iter().map(|v| v.pose).collect();
+                let focus = camera::capture_focus(&poses).unwrap_or((aabb.min + aabb.max) * 0.5);
+                share * camera::median_distance(&poses, focus)
+            }
+        }
+    }
+}
+
+/// Default of [`TrainConfig::near_gradient`]: within half the cameras' distance to what they
+/// look at (0.31 m on the dev capture; docs/DECISIONS.md, "The near-camera gradient scaling").
+pub const NEAR_GRADIENT: NearGradient = NearGradient::OfCapture(0.5);
 
 /// Default weight of the distortion loss: off — on the dev background it did not improve depth
 /// at the weights tried (docs/DECISIONS.md, "The engine").
@@ -293,7 +333,7 @@ impl TrainConfig {
             random_background: true,
             seed: 0,
             distortion: DISTORTION,
-            near_gradient_distance: NEAR_GRADIENT_DISTANCE,
+            near_gradient: NEAR_GRADIENT,
             focus: None,
             beta: BetaRegulariser::default(),
             frozen_stride: FROZEN_STRIDE,
@@ -484,6 +524,8 @@ pub struct Trainer<'a, M: Model> {
     pool: Option<RayPool>,
     bad_in_a_row: u32,
     empty_in_a_row: u32,
+    /// [`TrainConfig::near_gradient`]'s distance for these views (0: off).
+    near_distance: f32,
 }
 
 impl<'a, M: Model> Trainer<'a, M> {
@@ -606,6 +648,7 @@ impl<'a, M: Model> Trainer<'a, M> {
         let (rays, ctx) = (StepRays::default(), M::Context::default());
         let workers = (0..SLOTS).map(|_| Worker::default()).collect();
         let slots = (0..SLOTS).map(|_| M::Slot::default()).collect();
+        let near_distance = cfg.near_gradient.distance(views, state.occupancy.aabb());
         Ok(Trainer {
             isa,
             model,
@@ -622,6 +665,7 @@ impl<'a, M: Model> Trainer<'a, M> {
             pool: None,
             bad_in_a_row: 0,
             empty_in_a_row: 0,
+            near_distance,
         })
     }
 
@@ -633,6 +677,12 @@ impl<'a, M: Model> Trainer<'a, M> {
     /// The training views.
     pub fn views(&self) -> &'a [View] {
         self.views
+    }
+
+    /// The distance within which the run scales gradients down ([`TrainConfig::near_gradient`]
+    /// resolved for its views; 0: off).
+    pub fn near_distance(&self) -> f32 {
+        self.near_distance
     }
 
     /// Whether every step of the run is done.
@@ -740,7 +790,6 @@ impl<'a, M: Model> Trainer<'a, M> {
                 && cfg.pixel_rays == 1
                 && occupancy.is_frozen_outside_pins()
                 && cfg.distortion == 0.0
-                && cfg.near_gradient_distance == 0.0
                 && cfg.error_map.is_none()
         });
         match split {
@@ -786,7 +835,17 @@ impl<'a, M: Model> Trainer<'a, M> {
             false => 0.0,
         };
         let gains = state.gains.as_ref().map(ImageGains::gains).unwrap_or_default();
-        let inputs = StepInputs { isa, model, params: &*params, occupancy: &*occupancy, cfg, entropy, gains: &gains };
+        let near_distance = self.near_distance;
+        let inputs = StepInputs {
+            isa,
+            model,
+            params: &*params,
+            occupancy: &*occupancy,
+            cfg,
+            entropy,
+            gains: &gains,
+            near_distance,
+        };
         let rays = &*rays;
         workers.par_iter_mut().zip(slots.par_iter_mut()).enumerate().for_each(|(s, (w, slot))| {
             let range = slot_rays(rays.rays.len(), cfg.rays_per_pixel(), s);
@@ -978,6 +1037,35 @@ mod tests {
                 assert!(rays <= rays_for_capture(views * px, 1) && rays >= TRAIN_RAYS / 2 - 64, "K = {k}");
             }
         }
+    }
+
+    #[test]
+    fn the_near_gradient_distance_follows_the_capture() {
+        use crate::geometry::camera::Pose;
+        use crate::geometry::Intrinsics;
+        use glam::Vec3;
+        let view = |eye: Vec3, target: Vec3| View {
+            intrinsics: Intrinsics::pinhole(4, 4, 4.0, 4.0, 2.0, 2.0),
+            pose: Pose::look_at(eye, target),
+            rgb: vec![[0.5; 3]; 16],
+        };
+        let target = Vec3::new(0.1, 0.0, 0.0);
+        let ring: Vec<View> = (0..8)
+            .map(|i| {
+                let a = i as f32 * std::f32::consts::FRAC_PI_4;
+                view(target + 2.0 * Vec3::new(a.cos(), a.sin(), 0.5).normalize(), target)
+            })
+            .collect();
+        let aabb = Aabb { min: Vec3::splat(-3.0), max: Vec3::splat(3.0) };
+        let d = |n: NearGradient, views: &[View]| n.distance(views, &aabb);
+        assert!((d(NEAR_GRADIENT, &ring) - 1.0).abs() < 1e-5, "half the ring's radius");
+        assert!((d(NearGradient::OfCapture(0.25), &ring) - 0.5).abs() < 1e-5);
+        assert_eq!(d(NearGradient::Distance(0.3), &ring), 0.3);
+        assert_eq!(d(NearGradient::Off, &ring), 0.0);
+        // Parallel axes pin no focus: the box's centre stands in for it.
+        let parallel: Vec<View> =
+            (0..3).map(|i| view(Vec3::new(i as f32, -2.0, 0.0), Vec3::new(i as f32, 0.0, 0.0))).collect();
+        assert!((d(NEAR_GRADIENT, &parallel) - 0.5 * Vec3::new(1.0, -2.0, 0.0).length()).abs() < 1e-5);
     }
 
     #[test]
