@@ -7,24 +7,44 @@ share of the baseline's training seconds; then the first point where the method 
 its own final object MAE.
 
     scripts/time_to_quality.py CURVES [...] [--method residual] [--baseline dex]
+        [--baseline-evals DIR:NAME:SEED]
 
 CURVES is an `rnerf compare` curves.csv, optionally `FILE:METHOD,METHOD` to take only those
 methods' rows (e.g. the baseline's curves from an earlier run whose training it still is). A
 (scene, method, step) point met twice is an error; a scene without the baseline's curves gets
-the method's own columns only.
+the method's own columns only. `--baseline-evals DIR:NAME:SEED` takes the baseline's final object
+MAE from `scripts/residual_variant.sh` outputs instead (DIR/SCENE_NAME_sSEED.eval.json) and its
+training seconds from the run's log beside it (DIR/SCENE_NAME_sSEED.train.txt, the last step's
+line), for a baseline trained by `rnerf train` rather than `rnerf compare`.
 """
 import csv
+import json
+import os
+import re
 import sys
 
 
+def eval_point(d, name, seed, scene):
+    """The baseline's (step, seconds, object MAE) from a residual_variant.sh run, or None."""
+    stem = f"{d}/{scene}_{name}_s{seed}"
+    if not os.path.exists(f"{stem}.eval.json"):
+        return None
+    mae = json.load(open(f"{stem}.eval.json"))["regions"]["object"]["mae"]
+    steps = [re.match(r"train (\d+)/\d+ .* ([0-9.]+) s ", l) for l in open(f"{stem}.train.txt")]
+    step, secs = [(int(m.group(1)), float(m.group(2))) for m in steps if m][-1]
+    return step, secs, mae
+
+
 def main(argv):
-    method, baseline, files = "residual", "dex", []
+    method, baseline, files, evals = "residual", "dex", [], None
     it = iter(argv)
     for a in it:
         if a == "--method":
             method = next(it)
         elif a == "--baseline":
             baseline = next(it)
+        elif a == "--baseline-evals":
+            evals = next(it).split(":")
         else:
             files.append(a)
     if not files:
@@ -50,6 +70,9 @@ def main(argv):
             ((int(r["step"]), float(r["seconds"]), float(r["object_mae"])) for r in rows if r["scene"] == s and r["method"] == m)
         )
         b, m = curve(baseline), curve(method)
+        if evals:
+            point = eval_point(*evals, s)
+            b = [point] if point else []
         if not m:
             print(f"| {s} | missing curves for {method} |")
             continue
