@@ -178,7 +178,7 @@ pub enum NearGradient {
     Distance(f32),
     /// `d` this share of the training cameras' median distance to the point they look at
     /// ([`crate::geometry::camera::capture_focus`]; the scene box's centre where the cameras'
-    /// axes pin no point), so it follows the capture's scale.
+    /// axes do not meet near one point), so it follows the capture's scale.
     OfCapture(f32),
 }
 
