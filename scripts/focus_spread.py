@@ -18,7 +18,7 @@ import numpy as np
 
 def spread(centres, dirs):
     """The least-squares point, its root-mean-square distance from the axes over the median
-    distance of the cameras to it, and the median distance along the axes (negative: behind)."""
+    distance of the cameras to it, and that median distance."""
     a, b = np.zeros((3, 3)), np.zeros(3)
     for c, d in zip(centres, dirs):
         m = np.eye(3) - np.outer(d, d)
@@ -27,8 +27,7 @@ def spread(centres, dirs):
     f = np.linalg.solve(a, b)
     miss = np.sqrt(np.mean([np.sum(((np.eye(3) - np.outer(d, d)) @ (f - c)) ** 2) for c, d in zip(centres, dirs)]))
     dist = np.median([np.linalg.norm(f - c) for c in centres])
-    ahead = np.median([(f - c) @ d for c, d in zip(centres, dirs)])
-    return f, miss / dist, dist, ahead
+    return f, miss / dist, dist
 
 
 def unit(v):
@@ -39,18 +38,18 @@ def main():
     for path in sys.argv[1:]:
         frames = json.load(open(path))["frames"]
         m = [np.array(f["transform_matrix"], dtype=float) for f in frames]
-        f, ratio, dist, ahead = spread([x[:3, 3] for x in m], [unit(-x[:3, 2]) for x in m])
+        f, ratio, dist = spread([x[:3, 3] for x in m], [unit(-x[:3, 2]) for x in m])
         print(f"{path}: point {np.round(f, 3)}, median distance {dist:.3f}, axes pass it at {ratio:.3f} of it")
     rng = np.random.default_rng(1)
     grid = [np.array([i * 0.05, j * 0.05, 0.0]) for i in range(7) for j in range(7)]
     target = np.array([0.15, 0.15, -0.6])
     for deg in (1, 2, 3):
         dirs = [unit(np.array([*np.sin(np.radians(deg) * rng.standard_normal(2)), -1.0])) for _ in grid]
-        f, ratio, dist, ahead = spread(grid, dirs)
+        f, ratio, dist = spread(grid, dirs)
         print(f"forward-facing grid tilted by {deg} deg: point {dist:.2f} away, axes pass it at {ratio:.3f}")
     for deg in (0.5, 2):
         dirs = [unit(unit(target - c) + np.radians(deg) * rng.standard_normal(3)) for c in grid]
-        f, ratio, dist, ahead = spread(grid, dirs)
+        f, ratio, dist = spread(grid, dirs)
         print(f"grid aimed 0.6 m ahead, {deg} deg of aim error: point {dist:.2f} away, axes pass it at {ratio:.3f}")
 
 

@@ -24,7 +24,7 @@ commands:
          e.g. 50 views of 200x200, in proportion below down to 512 at 1 M pixels and fewer).
          --near-grad D: scale each sample's gradients by min(1, (t/D)^2), t its distance from
          the camera, so density right in front of one camera learns slower than the scene
-         (default: off; 0: off).
+         (default: off).
          A NeRF with --pose-registration on (for a background whose poses came from a robot
          arm): a first NeRF, every image's pose registered against it, N times (default 1),
          then the run at the registered poses. --image-gains on: learn a gain per image and

@@ -169,9 +169,7 @@ pub fn capture_focus(poses: &[Pose]) -> Option<Vec3> {
     let mut ahead: Vec<f64> = axes.iter().map(|&(c, d)| (focus - c).dot(d)).collect();
     ahead.sort_by(f64::total_cmp);
     let miss = (axes.iter().map(|&(c, d)| (across(d) * (focus - c)).length_squared()).sum::<f64>() / n).sqrt();
-    let mut dist: Vec<f64> = axes.iter().map(|&(c, _)| focus.distance(c)).collect();
-    dist.sort_by(f64::total_cmp);
-    let aimed = miss <= FOCUS_SPREAD as f64 * dist[dist.len() / 2];
+    let aimed = miss <= (FOCUS_SPREAD * median_distance(poses, focus.as_vec3())) as f64;
     (focus.is_finite() && ahead[ahead.len() / 2] > 0.0 && aimed).then(|| focus.as_vec3())
 }
 
